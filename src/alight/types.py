@@ -1,0 +1,298 @@
+"""Messages passed between the pipeline stages, and small frame helpers.
+
+Conventions (see ``docs/conventions.md``): world ``W`` is ENU with z up, body ``B`` is FLU, camera ``C``
+is OpenCV (x right, y down, z along the optical axis), pad ``P`` has its origin at the pad centre, z up and
+x along the platform's heading. Names carry frames in monogram notation: ``p_WB`` is the position of B
+in W, ``R_WB`` rotates B-vectors into W, ``w_WB_B`` is the angular velocity of B in W expressed in B.
+Quaternions are stored as SciPy does, ``(x, y, z, w)``. SI units, radians, seconds of simulated time.
+
+Every message is a frozen dataclass; arrays are made read-only float64 copies so that a message can be
+shared between stages without one stage mutating another's data.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+GRAVITY_MPS2 = 9.81
+"""Magnitude of gravity; ``g_W = (0, 0, -GRAVITY_MPS2)`` in the z-up world."""
+
+G_W: FloatArray = np.array([0.0, 0.0, -GRAVITY_MPS2])
+G_W.setflags(write=False)
+
+
+def _frozen(a: object, shape: tuple[int, ...], name: str) -> FloatArray:
+    arr = np.array(a, dtype=np.float64)  # a copy, so the caller keeps ownership of its buffer
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+def _frozen_any(a: object, ndim: int, name: str) -> FloatArray:
+    arr = np.array(a, dtype=np.float64)
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimensions, got shape {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+# --------------------------------------------------------------------------------------------------
+# Rotation helpers. Hand-written (not scipy.spatial.transform) because they run at 200 Hz-1 kHz on
+# single vectors where SciPy's object construction costs ~20x the arithmetic.
+# --------------------------------------------------------------------------------------------------
+
+
+def quat_to_rotmat(q_xyzw: FloatArray) -> FloatArray:
+    """Rotation matrix of a unit quaternion ``(x, y, z, w)`` (normalised here)."""
+    x, y, z, w = q_xyzw / math.sqrt(float(np.dot(q_xyzw, q_xyzw)))
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def rotmat_to_quat(R: FloatArray) -> FloatArray:
+    """Unit quaternion ``(x, y, z, w)`` with ``w >= 0`` of a rotation matrix (Shepperd's method)."""
+    m = np.asarray(R, dtype=np.float64)
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        q = np.array([0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s])
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        q = np.array([(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s])
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        q = np.array([(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s])
+    q /= np.linalg.norm(q)
+    return q if q[3] >= 0 else -q
+
+
+def yaw_of(R_WB: FloatArray) -> float:
+    """Heading of the body x axis projected on the world xy plane (rad, from world x, counter-clockwise)."""
+    return math.atan2(float(R_WB[1, 0]), float(R_WB[0, 0]))
+
+
+def rot_z(yaw: float) -> FloatArray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def wrap_angle(a: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+# --------------------------------------------------------------------------------------------------
+# Messages
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class EgoState:
+    """The vehicle's own state as the ego estimator (or the autopilot) reports it."""
+
+    t: float
+    """Time of validity (s)."""
+    p_WB: FloatArray
+    """Position of the body origin in W (m), shape (3,)."""
+    v_WB: FloatArray
+    """Velocity of the body origin in W, expressed in W (m/s), shape (3,)."""
+    q_WB: FloatArray
+    """Attitude, unit quaternion (x, y, z, w) rotating B-vectors into W, shape (4,)."""
+    w_WB_B: FloatArray
+    """Body rates, expressed in B (rad/s), shape (3,)."""
+    a_WB: FloatArray = field(default_factory=lambda: np.zeros(3))
+    """Acceleration of the body in W (m/s^2) where the estimator provides it, shape (3,)."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "p_WB", _frozen(self.p_WB, (3,), "p_WB"))
+        object.__setattr__(self, "v_WB", _frozen(self.v_WB, (3,), "v_WB"))
+        q = _frozen(self.q_WB, (4,), "q_WB")
+        n = float(np.linalg.norm(q))
+        if not (abs(n - 1.0) < 1e-6):
+            raise ValueError(f"q_WB must be a unit quaternion, norm is {n}")
+        object.__setattr__(self, "q_WB", q)
+        object.__setattr__(self, "w_WB_B", _frozen(self.w_WB_B, (3,), "w_WB_B"))
+        object.__setattr__(self, "a_WB", _frozen(self.a_WB, (3,), "a_WB"))
+
+    @property
+    def R_WB(self) -> FloatArray:
+        return quat_to_rotmat(self.q_WB)
+
+    def is_finite(self) -> bool:
+        return bool(
+            np.isfinite(self.p_WB).all()
+            and np.isfinite(self.v_WB).all()
+            and np.isfinite(self.q_WB).all()
+            and np.isfinite(self.w_WB_B).all()
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Observation:
+    """What a detector found in one image (or what the ground-truth sensor reports).
+
+    Detectors fill ``pixels`` (and ``points_P`` when the points' positions on the pad are known, for
+    PnP). Sensors that measure the relative pose directly (the ground-truth perception, a detector that
+    runs PnP itself) fill ``p_CP`` and ``cov_p_CP``.
+    """
+
+    t: float
+    """Capture time of the image (s)."""
+    kind: str
+    """What was found: ``circle``, ``cross``, ``quad``, ``blob``, ``nfold``, ``aruco:ID``, ``truth`` ..."""
+    quality: float
+    """Detector confidence in [0, 1]."""
+    pixels: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    """Image points (u, v) in pixels, shape (N, 2)."""
+    points_P: FloatArray | None = None
+    """The matching points on the pad, in P (m), shape (N, 3), when known."""
+    p_CP: FloatArray | None = None
+    """Pad centre in the camera frame (m), shape (3,), when measured directly."""
+    cov_p_CP: FloatArray | None = None
+    """Covariance of ``p_CP`` (m^2), shape (3, 3)."""
+    yaw_CP: float | None = None
+    """Rotation of the pad x axis about the camera's optical axis (rad), when measured."""
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.quality <= 1.0) or not math.isfinite(self.quality):
+            raise ValueError(f"quality must be in [0, 1], got {self.quality}")
+        px = _frozen_any(self.pixels, 2, "pixels") if np.size(self.pixels) else np.zeros((0, 2))
+        object.__setattr__(self, "pixels", px)
+        if self.points_P is not None:
+            pts = _frozen_any(self.points_P, 2, "points_P")
+            if pts.shape != (px.shape[0], 3):
+                raise ValueError(f"points_P must have shape ({px.shape[0]}, 3), got {pts.shape}")
+            object.__setattr__(self, "points_P", pts)
+        if self.p_CP is not None:
+            object.__setattr__(self, "p_CP", _frozen(self.p_CP, (3,), "p_CP"))
+        if self.cov_p_CP is not None:
+            object.__setattr__(self, "cov_p_CP", _frozen(self.cov_p_CP, (3, 3), "cov_p_CP"))
+
+
+@dataclass(frozen=True, slots=True)
+class PlatformMeasurement:
+    """A measurement of the platform (pad centre) in the world frame, as a geolocator outputs it."""
+
+    t: float
+    """Capture time of the image the measurement comes from (s)."""
+    p_WP: FloatArray
+    """Pad centre in W (m), shape (3,)."""
+    cov_p_WP: FloatArray
+    """Covariance of ``p_WP`` (m^2), shape (3, 3), symmetric positive definite."""
+    yaw: float | None = None
+    """Heading of the pad x axis in W (rad), when measured."""
+    yaw_var: float | None = None
+    """Variance of ``yaw`` (rad^2)."""
+
+    def __post_init__(self) -> None:
+        p = _frozen(self.p_WP, (3,), "p_WP")
+        c = _frozen(self.cov_p_WP, (3, 3), "cov_p_WP")
+        if not (np.isfinite(p).all() and np.isfinite(c).all()):
+            raise ValueError("PlatformMeasurement must be finite")
+        object.__setattr__(self, "p_WP", p)
+        object.__setattr__(self, "cov_p_WP", c)
+
+
+@dataclass(frozen=True, slots=True)
+class PlatformEstimate:
+    """The platform estimator's belief at time ``t``."""
+
+    t: float
+    p_WP: FloatArray
+    """Pad centre in W (m), shape (3,)."""
+    v_WP: FloatArray
+    """Pad velocity in W (m/s), shape (3,)."""
+    a_WP: FloatArray
+    """Pad acceleration in W (m/s^2), shape (3,) (centripetal for a turning unicycle)."""
+    yaw: float
+    """Heading of the platform (rad)."""
+    cov_p_WP: FloatArray
+    """Position covariance (m^2), shape (3, 3)."""
+    t_last_measurement: float
+    """Time of the last measurement used (s); ``t - t_last_measurement`` is the age of the estimate."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "p_WP", _frozen(self.p_WP, (3,), "p_WP"))
+        object.__setattr__(self, "v_WP", _frozen(self.v_WP, (3,), "v_WP"))
+        object.__setattr__(self, "a_WP", _frozen(self.a_WP, (3,), "a_WP"))
+        object.__setattr__(self, "cov_p_WP", _frozen(self.cov_p_WP, (3, 3), "cov_p_WP"))
+
+
+@dataclass(frozen=True, slots=True)
+class Reference:
+    """A point of the reference trajectory the controller tracks (all in W)."""
+
+    t: float
+    p: FloatArray
+    """Position (m), shape (3,)."""
+    v: FloatArray
+    """Velocity (m/s), shape (3,)."""
+    a: FloatArray
+    """Acceleration (m/s^2), shape (3,)."""
+    j: FloatArray
+    """Jerk (m/s^3), shape (3,)."""
+    yaw: float = 0.0
+    """Heading (rad)."""
+    yaw_rate: float = 0.0
+    """Heading rate (rad/s)."""
+
+    def __post_init__(self) -> None:
+        for name in ("p", "v", "a", "j"):
+            object.__setattr__(self, name, _frozen(getattr(self, name), (3,), name))
+
+
+@dataclass(frozen=True, slots=True)
+class Command:
+    """What the high-level controller asks of the low level."""
+
+    t: float
+    thrust_N: float
+    """Collective thrust along +z_B (N)."""
+    w_WB_B_cmd: FloatArray
+    """Commanded body rates, expressed in B (rad/s), shape (3,)."""
+    motors_off: bool = False
+    """True once the mission has stopped the motors (after touchdown)."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "w_WB_B_cmd", _frozen(self.w_WB_B_cmd, (3,), "w_WB_B_cmd"))
+        if not math.isfinite(self.thrust_N):
+            raise ValueError(f"thrust_N must be finite, got {self.thrust_N}")
+
+
+class Mode(str, enum.Enum):
+    """Mission modes (paper 000 Sec. II-F plus the failsafe modes)."""
+
+    IDLE = "idle"
+    TAKEOFF = "takeoff"
+    EXPLORE = "explore"
+    TRACK = "track"
+    LAND = "land"
+    GO_AROUND = "go_around"
+    LANDED = "landed"
+    ABORT = "abort"
+
+
+class Outcome(str, enum.Enum):
+    """How a mission ended, judged from ground truth by the simulator."""
+
+    LANDED = "landed"
+    CRASHED = "crashed"
+    TIMEOUT = "timeout"
+    ABORTED = "aborted"
+    ERROR = "error"
