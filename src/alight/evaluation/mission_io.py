@@ -1,0 +1,53 @@
+"""Fly one mission and write everything a person or a campaign needs into its directory:
+``result.json``, ``log.npz`` / ``log.csv`` / ``log_detections.csv``, the figures and ``report.html``."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from alight.errors import InputError
+from alight.evaluation.log import save_arrays
+from alight.evaluation.report import write_mission_report
+from alight.evaluation.runner import MissionRun, run_mission
+from alight.scenario import Scenario
+
+RESULT_JSON = "result.json"
+
+
+def _json_safe(value: Any) -> Any:
+    # NaN and inf are not JSON; a reader should see null, not a parse error.
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def write_result(out_dir: Path, result: dict[str, Any]) -> Path:
+    path = out_dir / RESULT_JSON
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(_json_safe(result), indent=2, sort_keys=False), encoding="utf-8")
+    tmp.replace(path)  # atomic: a reader never sees half a file
+    return path
+
+
+def fly_to_dir(scenario: Scenario, out_dir: str | Path, *, report: bool = True) -> MissionRun:
+    """Fly ``scenario`` and write its outputs into ``out_dir`` (created if needed)."""
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
+    run = run_mission(scenario, record=True)
+    if run.log is None:  # record=True always logs; this guards a future change of run_mission
+        raise RuntimeError("run_mission returned no log")
+    save_arrays(run.log, out)
+    if report:
+        write_mission_report(out, run.result, run.log, run.events)
+    write_result(out, run.result)
+    return run

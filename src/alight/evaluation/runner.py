@@ -1,0 +1,306 @@
+"""The runner: steps the simulated world and a preset's pipeline together, and judges the outcome.
+
+Rates (simulated clock): dynamics and the body-rate loop at 1 kHz (fused, ``physics.advance``), IMU at
+200 Hz (the base tick), odometry at 40 Hz, range finder at 100 Hz, controller at 100 Hz, mission and
+planner at the planner's rate (50 Hz), perception at the scenario's rate with its latency, log at 50 Hz.
+
+The runner is the only place that sees both the truth and the pipeline. Randomness: one
+``SeedSequence`` from the scenario seed, one child per component, so changing one component's
+settings does not change another's random numbers.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+import alight
+from alight.airframe import DEFAULT_AIRFRAME, Airframe
+from alight.control.rate import pack_low_level_params
+from alight.energy import flight_energy_J
+from alight.evaluation.log import MissionLog
+from alight.evaluation.physics import advance
+from alight.mission.presets import build_preset
+from alight.scenario import Scenario
+from alight.sim.platform import Platform, PlatformConfig
+from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params
+from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
+from alight.sim.touchdown import Contact, ContactLimits, judge_contact
+from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
+from alight.sim.wind import GustWind, NoWind, SteadyWind
+from alight.types import Mode, Outcome, quat_to_rotmat
+
+PHYSICS_DT = 0.001
+TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
+POST_CONTACT_S = 1.0  # simulated after a landing, with the vehicle resting on the pad
+ABORT_HOLD_S = 2.0  # an aborted mission ends this long after the abort
+
+
+@dataclass
+class MissionRun:
+    """What one mission produced."""
+
+    result: dict[str, Any]
+    log: dict[str, np.ndarray] | None
+    events: dict[str, float | None]
+    contact: Contact | None = None
+    mode_history: list[tuple[float, str, str]] = field(default_factory=list)
+
+
+def _platform_config(s: Scenario, rng: np.random.Generator) -> PlatformConfig:
+    spec, area = s.platform, s.search_area
+    # Unless the scenario fixes them, the start point is drawn inside the search area (away from its
+    # edges and from the take-off point) and the heading uniformly.
+    if spec.start_xy is None:
+        for _ in range(100):
+            x = rng.uniform(area.x_min + 0.2 * (area.x_max - area.x_min), area.x_max - 0.2 * (area.x_max - area.x_min))
+            y = rng.uniform(area.y_min + 0.2 * (area.y_max - area.y_min), area.y_max - 0.2 * (area.y_max - area.y_min))
+            if math.hypot(x, y) > 5.0:
+                break
+        start = (float(x), float(y))
+    else:
+        start = spec.start_xy
+    heading = float(rng.uniform(-math.pi, math.pi)) if spec.heading_rad is None else spec.heading_rad
+    return PlatformConfig(
+        path=spec.path,
+        speed_mps=spec.speed_mps,
+        pad_size_m=spec.pad_size_m,
+        pad_height_m=spec.pad_height_m,
+        start_xy_m=start,
+        start_heading=heading,
+        circle_radius_m=spec.circle_radius_m,
+        figure8_length_m=spec.figure8_length_m,
+        tractor_row_length_m=spec.tractor_row_length_m,
+        tractor_turn_radius_m=spec.tractor_turn_radius_m,
+        random_max_curvature=spec.random_max_curvature,
+    )
+
+
+def _wind(s: Scenario, rng: np.random.Generator) -> NoWind | SteadyWind | GustWind:
+    if s.wind.model == "steady":
+        return SteadyWind(np.array(s.wind.velocity_mps, dtype=float))
+    if s.wind.model == "gust":
+        return GustWind(rng, power_init_N=s.wind.gust_power_N)
+    return NoWind()
+
+
+def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, record: bool = True) -> MissionRun:
+    """Fly one mission of ``scenario`` and return its result (and log when ``record``)."""
+    wall0 = time.perf_counter()
+    s = scenario
+    seeds = np.random.SeedSequence(s.seed).spawn(8)
+    rngs = [np.random.default_rng(c) for c in seeds]
+    rng_place, rng_platform, rng_wind, rng_imu, rng_odo, rng_range, rng_perc, rng_pipe = rngs
+
+    platform = Platform(_platform_config(s, rng_place), rng_platform)
+    wind = _wind(s, rng_wind)
+    imu = Imu(ImuConfig(), rng_imu)
+    odometry = Odometry(OdometryConfig(), rng_odo)
+    rangefinder = RangeFinder(RangeFinderConfig(origin_B=(0.0, 0.0, -airframe.gear_height)), rng_range)
+    limits = ContactLimits(
+        gear_half_width=s.contact.gear_half_width_m,
+        max_vertical_speed_mps=s.contact.max_vertical_speed_mps,
+        max_horizontal_speed_mps=s.contact.max_horizontal_speed_mps,
+        max_tilt_deg=s.contact.max_tilt_deg,
+    )
+    preset = build_preset(s, airframe, rng_pipe)
+    pipeline = preset.pipeline
+    pc = s.perception
+    truth_perception = TruthPerception(
+        TruthPerceptionConfig(
+            rate_hz=pc.rate_hz,
+            noise_m=pc.noise_m,
+            latency_s=pc.latency_s,
+            dropout_prob=min(1.0, pc.dropout_prob + s.faults.dropout_prob),
+            blackouts=tuple(tuple(b) for b in s.faults.blackouts),  # type: ignore[misc]
+            hfov_rad=math.radians(pc.fov_deg[0]),
+            vfov_rad=math.radians(pc.fov_deg[1]),
+            max_range_m=pc.max_range_m,
+        ),
+        preset.mount.R_BC,
+        preset.mount.p_BC,
+        rng_perc,
+    )
+
+    sim_params = pack_params(airframe)
+    ll_params = pack_low_level_params(airframe, preset.rate_gains)
+    x = initial_state(np.array([0.0, 0.0, airframe.gear_height]), yaw=0.0)
+    zero3 = np.zeros(3)
+
+    n_sub = round(TICK_DT / PHYSICS_DT)
+    every = {
+        "odometry": round(1.0 / (40.0 * TICK_DT)),
+        "range": round(1.0 / (100.0 * TICK_DT)),
+        "control": round(1.0 / (100.0 * TICK_DT)),
+        "mission": max(1, round(1.0 / (s.planner.rate_hz * TICK_DT))),
+        "log": round(1.0 / (50.0 * TICK_DT)),
+    }
+    perception_period = 1.0 / pc.rate_hz
+    next_capture = 0.0
+    pending: deque[tuple[float, float, list]] = deque()  # (delivery time, capture time, observations)
+
+    log = MissionLog() if record else None
+    cmd = None
+    thrust_N, w_cmd, motors_on = 0.0, zero3, False
+    contact: Contact | None = None
+    t_contact: float | None = None
+    supported = True  # standing on the ground before take-off
+    support_z, support_v = 0.0, zero3
+    airborne = False
+    t_abort: float | None = None
+    outcome: Outcome | None = None
+    a_prev_v = x[SL_V].copy()
+    n_ticks = int(round(s.duration_s / TICK_DT))
+    mode = Mode.IDLE
+    pad = s.platform.pad_size_m
+
+    k = 0
+    t = 0.0
+    for k in range(1, n_ticks + 1):
+        f_wind = wind.force_W(t, x[SL_P], x[SL_V])
+        v_air = wind.air_velocity_W(t)
+        v_before = x[SL_V].copy()
+        x = advance(
+            x, thrust_N, w_cmd, motors_on, f_wind, v_air, sim_params, ll_params, PHYSICS_DT, n_sub,
+            support_z, support_v, airframe.gear_height, supported,
+        )
+        t = k * TICK_DT
+        p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]
+        a_WB = (v_WB - v_before) / TICK_DT
+        a_prev_v = v_WB
+
+        if not airborne and p_WB[2] - airframe.gear_height > 0.05:
+            airborne, supported = True, False
+        truth = None
+        if airborne and contact is None and p_WB[2] - airframe.gear_height <= s.platform.pad_height_m + 0.01:
+            truth = platform.state(t)
+            contact = judge_contact(p_WB, v_WB, quat_to_rotmat(q_WB), truth, pad, airframe.gear_height, limits)
+            if contact is not None:
+                t_contact = t
+                if contact.outcome is Outcome.LANDED:
+                    supported, support_z = True, float(truth.p_WP[2])
+                else:
+                    break
+        if supported and contact is not None:
+            truth = truth or platform.state(t)
+            support_v = truth.v_WP.copy()
+            support_z = float(truth.p_WP[2])
+            motors_on = False
+        if t_contact is not None and t - t_contact >= POST_CONTACT_S:
+            break
+
+        # -- sensors into the pipeline ------------------------------------------------------------------
+        f_B, g_B = imu.measure(a_WB, q_WB, w_WB_B)
+        pipeline.on_imu(t, f_B, g_B)
+        if k % every["odometry"] == 0:
+            odo = odometry.measure(t, p_WB, v_WB, q_WB, w_WB_B)
+            pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB)
+        if not pipeline.ego_estimator.initialized:
+            continue
+        if k % every["range"] == 0:
+            truth = truth or platform.state(t)
+            r = rangefinder.measure(p_WB, q_WB, truth, pad)
+            pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
+        if t + 1e-9 >= next_capture:
+            truth = truth or platform.state(t)
+            obs = truth_perception.observe(t, p_WB, quat_to_rotmat(q_WB), truth.p_WP)
+            pending.append((t + pc.latency_s, t, obs))
+            next_capture += perception_period
+        while pending and pending[0][0] <= t + 1e-9:
+            _, t_cap, obs = pending.popleft()
+            for m in pipeline.on_observations(t_cap, obs):
+                if log is not None:
+                    log.add_detection(m.t, m.p_WP)
+
+        # -- decisions ----------------------------------------------------------------------------------
+        if k % every["mission"] == 0:
+            mode = pipeline.step(t).mode
+            if mode is Mode.ABORT and t_abort is None:
+                t_abort = t
+        if k % every["control"] == 0:
+            cmd = pipeline.command(t)
+            thrust_N, w_cmd, motors_on = cmd.thrust_N, cmd.w_WB_B_cmd, not cmd.motors_off
+            if contact is not None:
+                motors_on = False
+        if t_abort is not None and t - t_abort >= ABORT_HOLD_S and contact is None:
+            outcome = Outcome.ABORTED
+            break
+
+        if log is not None and k % every["log"] == 0:
+            truth = truth or platform.state(t)
+            ego = pipeline.ego()
+            target = pipeline.target(t)
+            ref = pipeline.last_reference
+            log.append(
+                t,
+                mode=mode.value,
+                p_WB=p_WB,
+                v_WB=v_WB,
+                p_WB_est=ego.p_WB,
+                v_WB_est=ego.v_WB,
+                p_WP=truth.p_WP,
+                v_WP=truth.v_WP,
+                p_WP_est=None if target is None else target.p_WP,
+                v_WP_est=None if target is None else target.v_WP,
+                p_ref=None if ref is None else ref.p,
+                v_ref=None if ref is None else ref.v,
+                thrust_N=thrust_N,
+                w_cmd=w_cmd,
+                w_WB_B=w_WB_B,
+                range_m=pipeline.range_m,
+                f_wind_W=f_wind,
+                motor_N=x[IX_F : IX_F + 4],
+            )
+
+    if outcome is None:
+        outcome = contact.outcome if contact is not None else Outcome.TIMEOUT
+    wall = time.perf_counter() - wall0
+    arrays = log.finalize() if log is not None else None
+    stats = pipeline.stats
+    events = {
+        "t_first_detection": stats.t_first_detection,
+        "t_landing_start": stats.t_landing_start,
+        "t_touchdown": t_contact,
+    }
+    energy = None
+    rmse = None
+    if arrays is not None and len(arrays["t"]) > 1:
+        energy = flight_energy_J(arrays["t"], arrays["motor_N"])
+        err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
+        err = err[np.isfinite(err)]
+        rmse = float(np.sqrt(np.mean(err**2))) if err.size else None
+    result: dict[str, Any] = {
+        "scenario": s.model_dump(mode="json"),
+        "seed": s.seed,
+        "preset": s.preset,
+        "outcome": outcome.value,
+        "success": outcome is Outcome.LANDED,
+        "touchdown_error_m": None if contact is None else contact.touchdown_error_m,
+        "touchdown_rel_speed_mps": None if contact is None else contact.rel_speed_mps,
+        "touchdown_rel_vertical_speed_mps": None if contact is None else contact.rel_vertical_speed_mps,
+        "touchdown_rel_horizontal_speed_mps": None if contact is None else contact.rel_horizontal_speed_mps,
+        "touchdown_tilt_deg": None if contact is None else math.degrees(contact.tilt_rad),
+        "contact_surface": None if contact is None else contact.surface,
+        "contact_reason": None if contact is None else contact.reason,
+        "time_first_detection_s": stats.t_first_detection,
+        "time_landing_start_s": stats.t_landing_start,
+        "time_to_land_s": t_contact if outcome is Outcome.LANDED else None,
+        "energy_flight_J": energy,
+        "energy_compute_J": None,
+        "detections": stats.measurements,
+        "rejected_measurements": stats.rejected_measurements,
+        "go_arounds": pipeline.mission.go_arounds,
+        "final_mode": pipeline.status.mode.value,
+        "platform_estimate_rmse_m": rmse,
+        "simulated_time_s": t,
+        "wall_time_s": wall,
+        "alight_version": alight.__version__,
+    }
+    history = [(tt, m.value, why) for tt, m, why in pipeline.mission.history]
+    result["mode_history"] = [{"t": tt, "mode": m, "reason": why} for tt, m, why in history]
+    return MissionRun(result=result, log=arrays, events=events, contact=contact, mode_history=history)

@@ -1,0 +1,171 @@
+"""Guidance: what each mission mode flies, as a reference trajectory for the controller.
+
+- take-off: a rest-to-rest minimum-jerk primitive to the hover point (paper 000 Sec. II-F.1);
+- exploration: the coverage pattern of the search area (Sec. II-F.2);
+- tracking: candidate primitives to the platform's predicted states, the cheapest feasible one kept,
+  replanned at the planner's rate (Sec. II-D, II-F.3);
+- landing: match the platform in x, y (position, velocity, acceleration from its estimate) while
+  descending at a set vertical speed (Sec. II-F.4);
+- go-around: keep matching the platform while climbing back to the tracking height;
+- abort: hold the horizontal position at the exploration altitude.
+
+Replanning (``update``) and sampling (``reference``) are separate so that the planner can run at 50 Hz
+while the controller samples the current plan at its own rate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from alight.estimation import PlatformEstimator
+from alight.mission.state_machine import MissionConfig
+from alight.planning.candidates import CandidatePlanner, sample_end_times
+from alight.planning.exploration import ExplorationRoute, footprint_width_m, lawnmower_waypoints
+from alight.planning.min_jerk import MinJerkTrajectory
+from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference
+
+_ZERO3 = np.zeros(3)
+_ZERO3.setflags(write=False)
+
+
+@dataclass(frozen=True, kw_only=True)
+class GuidanceConfig:
+    search_area: tuple[float, float, float, float] = (-20.0, 20.0, -20.0, 20.0)
+    """x_min, x_max, y_min, y_max of the area to explore (m)."""
+    camera_fov_rad: float = math.radians(64.0)
+    """Narrower field of view of the downward camera; it sets the spacing of the coverage rows (rad)."""
+    coverage_overlap: float = 0.2
+    """Fraction of the camera footprint shared by neighbouring rows."""
+    cruise_speed_mps: float = 3.0
+    """Speed of point-to-point moves (take-off, abort, exploration legs) (m/s)."""
+    climb_speed_mps: float = 1.0
+    """Vertical speed of a go-around (m/s)."""
+    land_floor_below_pad_m: float = 0.3
+    """The descent's reference keeps going this far below the pad surface, so the vehicle keeps sinking
+    until the range finder stops the motors rather than hovering just above the pad (m)."""
+    yaw: float = 0.0
+    """Heading held throughout (rad)."""
+
+
+def _rest_to_rest(t0: float, p0: FloatArray, v0: FloatArray, pf: FloatArray, speed: float) -> MinJerkTrajectory:
+    # A rest-to-rest minimum-jerk move peaks at 1.875 d / T; pick T so the peak is the cruise speed.
+    d = float(np.linalg.norm(pf - p0))
+    T = max(1.5, 1.875 * d / speed)
+    return MinJerkTrajectory.from_boundary(t0, T, p0, v0, _ZERO3, pf, _ZERO3, _ZERO3)
+
+
+class Guidance:
+    """Turns the mission mode and the estimates into a reference trajectory."""
+
+    def __init__(
+        self,
+        mission_config: MissionConfig,
+        planner: CandidatePlanner,
+        config: GuidanceConfig | None = None,
+    ) -> None:
+        self.mission_config = mission_config
+        self.planner = planner
+        self.config = config or GuidanceConfig()
+        self._mode: Mode | None = None
+        self._traj: MinJerkTrajectory | None = None
+        self._route: ExplorationRoute | None = None
+        self._hold: Reference | None = None
+        self._mode_t0 = 0.0
+        self._z_entry = 0.0
+        self._last_ref: Reference | None = None
+        self.plans_adopted = 0
+
+    # ------------------------------------------------------------------------------------------------
+    def update(
+        self,
+        t: float,
+        mode: Mode,
+        ego: EgoState,
+        target: PlatformEstimate | None,
+        estimator: PlatformEstimator | None,
+        hover_point_W: FloatArray,
+    ) -> None:
+        """Replan for ``mode`` at time ``t`` (called at the planner's rate)."""
+        entered = mode is not self._mode
+        if entered:
+            self._enter(t, mode, ego, hover_point_W)
+        if mode is Mode.TRACK and target is not None and estimator is not None:
+            self._replan_tracking(t, ego, estimator)
+
+    def _start_state(self, t: float, ego: EgoState) -> tuple[FloatArray, FloatArray, FloatArray]:
+        # Continue from the reference being flown (a smooth command), unless the vehicle is far from it
+        # (after a mode change or a disturbance): then restart from the estimate.
+        if self._last_ref is not None:
+            p, v, a = self._last_ref.p, self._last_ref.v, self._last_ref.a
+            if np.linalg.norm(p - ego.p_WB) < 0.5 and np.linalg.norm(v - ego.v_WB) < 1.0:
+                return p, v, a
+            return ego.p_WB, ego.v_WB, a
+        return ego.p_WB, ego.v_WB, _ZERO3
+
+    def _enter(self, t: float, mode: Mode, ego: EgoState, hover_point_W: FloatArray) -> None:
+        cfg, mcfg = self.config, self.mission_config
+        self._mode, self._mode_t0, self._z_entry = mode, t, float(ego.p_WB[2])
+        self._traj, self._route = None, None
+        p0, v0, _ = self._start_state(t, ego)
+        if mode is Mode.TAKEOFF:
+            self._traj = _rest_to_rest(t, ego.p_WB, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2)
+        elif mode is Mode.EXPLORE:
+            x0, x1, y0, y1 = cfg.search_area
+            spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
+            waypoints = lawnmower_waypoints(x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, start_xy=p0[:2])
+            self._route = ExplorationRoute(waypoints, t0=t, p0=p0, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps)
+        elif mode is Mode.TRACK:
+            self.planner.reset()
+        elif mode is Mode.ABORT:
+            goal = np.array([p0[0], p0[1], mcfg.explore_altitude_m])
+            self._traj = _rest_to_rest(t, p0, v0 * 0.0, goal, cfg.cruise_speed_mps / 2)
+
+    def _replan_tracking(self, t: float, ego: EgoState, estimator: PlatformEstimator) -> None:
+        pcfg = self.planner.config
+        times = sample_end_times(t, pcfg.n_candidates, pcfg.horizon_min_s, pcfg.horizon_max_s)
+        p_pred, v_pred, _, _ = estimator.predict_ahead(times)
+        p_end = p_pred + np.array([0.0, 0.0, self.mission_config.track_height_m])
+        p0, v0, a0 = self._start_state(t, ego)
+        floor_z = float(np.max(p_pred[:, 2])) + 0.5 * self.mission_config.track_height_m
+        floor_z = min(floor_z, float(p0[2]) - 0.05, float(np.min(p_end[:, 2])) - 0.05)
+        result = self.planner.plan(t, p0, v0, a0, times, p_end, v_pred, floor_z=floor_z)
+        if result.trajectory is not None:
+            if result.trajectory is not self._traj:
+                self.plans_adopted += 1
+            self._traj = result.trajectory
+
+    # ------------------------------------------------------------------------------------------------
+    def reference(self, t: float, mode: Mode, target: PlatformEstimate | None) -> Reference:
+        """The reference at time ``t`` (called at the controller's rate)."""
+        cfg, mcfg = self.config, self.mission_config
+        ref: Reference
+        if mode in (Mode.LAND, Mode.GO_AROUND) and target is not None:
+            dt = t - self._mode_t0
+            if mode is Mode.LAND:
+                z_floor = float(target.p_WP[2]) - cfg.land_floor_below_pad_m
+                z = max(self._z_entry - mcfg.land_speed_mps * dt, z_floor)
+                vz = -mcfg.land_speed_mps if z > z_floor else 0.0
+            else:
+                z_goal = float(target.p_WP[2]) + mcfg.track_height_m
+                z = min(self._z_entry + cfg.climb_speed_mps * dt, z_goal)
+                vz = cfg.climb_speed_mps if z < z_goal else 0.0
+            p = np.array([target.p_WP[0], target.p_WP[1], z])
+            v = np.array([target.v_WP[0], target.v_WP[1], vz])
+            a = np.array([target.a_WP[0], target.a_WP[1], 0.0])
+            ref = Reference(t, p, v, a, _ZERO3, cfg.yaw, 0.0)
+        elif self._route is not None and mode is Mode.EXPLORE:
+            p, v, a, j = self._route.reference(t)
+            ref = Reference(t, p, v, a, j, cfg.yaw, 0.0)
+        elif self._traj is not None:
+            p, v, a, j = self._traj.sample(t)
+            ref = Reference(t, p, v, a, j, cfg.yaw, 0.0)
+        elif self._last_ref is not None:
+            r = self._last_ref
+            ref = Reference(t, r.p, _ZERO3, _ZERO3, _ZERO3, cfg.yaw, 0.0)
+        else:
+            raise RuntimeError("guidance.reference called before update")
+        self._last_ref = ref
+        return ref

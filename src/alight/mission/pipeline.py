@@ -1,0 +1,204 @@
+"""The Pipeline: one object that wires the blocks of a preset together, in the order of the data flow
+
+    image -> detection -> geolocation -> platform estimate -> mission -> plan -> control
+
+plus the ego-state estimator fed by the IMU and the odometry. It never sees ground truth: whatever drives
+it (the simulator's runner, a recorded flight, an autopilot bridge) calls the ``on_*`` methods with sensor
+data stamped with their capture times, ``step`` at the planner's rate and ``command`` at the
+controller's rate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from alight.control.high_level import HighLevelController
+from alight.estimation import PlatformEstimator
+from alight.estimation.ego_ekf import EgoEkf
+from alight.mission.guidance import Guidance
+from alight.mission.state_machine import Mission, MissionStatus
+from alight.perception import Detector, Geolocator
+from alight.types import (
+    Command,
+    EgoState,
+    FloatArray,
+    Mode,
+    Observation,
+    PlatformEstimate,
+    PlatformMeasurement,
+    Reference,
+    quat_to_rotmat,
+)
+
+_ZERO3 = np.zeros(3)
+
+
+class EgoHistory:
+    """The recent ego estimates, to look up the camera pose at an image's capture time.
+
+    A ring of poses; the pose at time t is interpolated between the two samples around it (positions
+    linearly, attitudes by normalised linear interpolation, which is within 1e-4 rad of slerp for the
+    few-degree steps between samples)."""
+
+    def __init__(self, capacity: int = 512) -> None:
+        self.t = np.full(capacity, -np.inf)
+        self.p = np.zeros((capacity, 3))
+        self.q = np.zeros((capacity, 4))
+        self.q[:, 3] = 1.0
+        self._i = 0
+        self._n = 0
+
+    def add(self, t: float, p_WB: FloatArray, q_WB: FloatArray) -> None:
+        i = self._i
+        self.t[i], self.p[i], self.q[i] = t, p_WB, q_WB
+        self._i = (i + 1) % self.t.size
+        self._n = min(self._n + 1, self.t.size)
+
+    def pose_at(self, t: float) -> tuple[FloatArray, FloatArray] | None:
+        """(p_WB, R_WB) at time t, or None when t is outside the stored span by more than 50 ms."""
+        if self._n == 0:
+            return None
+        order = np.argsort(self.t)
+        ts = self.t[order][-self._n :]
+        k = int(np.searchsorted(ts, t))
+        idx = order[-self._n :]
+        if k == 0:
+            if ts[0] - t > 0.05:
+                return None
+            return self.p[idx[0]].copy(), quat_to_rotmat(self.q[idx[0]])
+        if k == ts.size:
+            if t - ts[-1] > 0.05:
+                return None
+            return self.p[idx[-1]].copy(), quat_to_rotmat(self.q[idx[-1]])
+        i0, i1 = idx[k - 1], idx[k]
+        s = (t - ts[k - 1]) / max(ts[k] - ts[k - 1], 1e-9)
+        p = (1 - s) * self.p[i0] + s * self.p[i1]
+        q1 = self.q[i1] if np.dot(self.q[i0], self.q[i1]) >= 0 else -self.q[i1]
+        q = (1 - s) * self.q[i0] + s * q1
+        return p, quat_to_rotmat(q / np.linalg.norm(q))
+
+
+@dataclass
+class PipelineStats:
+    """Counts the runner reports in ``result.json``."""
+
+    frames: int = 0
+    observations: int = 0
+    measurements: int = 0
+    rejected_measurements: int = 0
+    t_first_detection: float | None = None
+    t_landing_start: float | None = None
+    block_time_s: dict[str, float] = field(default_factory=dict)
+
+
+class Pipeline:
+    """The onboard software of one preset."""
+
+    def __init__(
+        self,
+        *,
+        ego_estimator: EgoEkf,
+        geolocator: Geolocator,
+        platform_estimator: PlatformEstimator,
+        mission: Mission,
+        guidance: Guidance,
+        controller: HighLevelController,
+        detector: Detector | None = None,
+    ) -> None:
+        self.ego_estimator = ego_estimator
+        self.detector = detector
+        self.geolocator = geolocator
+        self.platform_estimator = platform_estimator
+        self.mission = mission
+        self.guidance = guidance
+        self.controller = controller
+        self.history = EgoHistory()
+        self.stats = PipelineStats()
+        self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
+        self.range_m: float | None = None
+        self.last_reference: Reference | None = None
+        self.last_measurement: PlatformMeasurement | None = None
+        self._ego: EgoState | None = None
+
+    # -- sensors ----------------------------------------------------------------------------------------
+    def on_imu(self, t: float, f_B: FloatArray, w_B: FloatArray) -> None:
+        self.ego_estimator.predict_imu(t, f_B, w_B)
+
+    def on_odometry(
+        self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
+    ) -> None:
+        if not self.ego_estimator.initialized:
+            self.ego_estimator.initialize(t, p_WB, _ZERO3 if v_WB is None else v_WB, q_WB)
+            return
+        self.ego_estimator.update_odometry(t, p_WB, q_WB, v_WB)
+
+    def on_range(self, t: float, range_m: float | None) -> None:
+        self.range_m = range_m if range_m is not None and math.isfinite(range_m) else None
+
+    def on_image(self, t_capture: float, image: np.ndarray) -> list[Observation]:
+        """Run the detector on an image taken at ``t_capture`` and use what it finds."""
+        if self.detector is None:
+            raise RuntimeError("this pipeline has no detector; feed observations with on_observations")
+        self.stats.frames += 1
+        observations = self.detector.detect(image, t_capture)
+        self.on_observations(t_capture, observations)
+        return observations
+
+    def on_observations(self, t_capture: float, observations: list[Observation]) -> list[PlatformMeasurement]:
+        """Geolocate observations of an image taken at ``t_capture`` and update the platform estimate."""
+        out: list[PlatformMeasurement] = []
+        if not observations:
+            return out
+        pose = self.history.pose_at(t_capture)
+        if pose is None:
+            return out
+        p_WB, R_WB = pose
+        self.stats.observations += len(observations)
+        best = max(observations, key=lambda o: o.quality)
+        measurement = self.geolocator.locate(best, p_WB, R_WB)
+        if measurement is None:
+            return out
+        if self.platform_estimator.update(measurement):
+            self.stats.measurements += 1
+            if self.stats.t_first_detection is None:
+                self.stats.t_first_detection = t_capture
+            self.last_measurement = measurement
+            out.append(measurement)
+        else:
+            self.stats.rejected_measurements += 1
+        return out
+
+    # -- decisions ----------------------------------------------------------------------------------------
+    def ego(self) -> EgoState:
+        return self.ego_estimator.state()
+
+    def target(self, t: float) -> PlatformEstimate | None:
+        return self.platform_estimator.state(t) if self.platform_estimator.initialized else None
+
+    def step(self, t: float) -> MissionStatus:
+        """Run the mission logic and replan (at the planner's rate)."""
+        ego = self.ego()
+        self.history.add(t, ego.p_WB, ego.q_WB)
+        target = self.target(t)
+        self.status = self.mission.step(t, ego, target, self.range_m)
+        if self.status.changed and self.status.mode is Mode.LAND and self.stats.t_landing_start is None:
+            self.stats.t_landing_start = t
+        self.guidance.update(
+            t, self.status.mode, ego, target, self.platform_estimator, self.mission.hover_point_W()
+        )
+        return self.status
+
+    def command(self, t: float) -> Command:
+        """The command to the low level (at the controller's rate)."""
+        ego = self.ego()
+        self.history.add(t, ego.p_WB, ego.q_WB)
+        mode = self.status.mode
+        if mode in (Mode.LANDED, Mode.IDLE):
+            return Command(t, 0.0, _ZERO3, motors_off=True)
+        target = self.target(t) if mode in (Mode.LAND, Mode.GO_AROUND) else None
+        ref = self.guidance.reference(t, mode, target)
+        self.last_reference = ref
+        return self.controller.command(ego, ref)

@@ -1,0 +1,204 @@
+"""Scenario files: what one mission is, validated with pydantic.
+
+A scenario names a preset (which implementation each block uses), a seed, the platform's motion, the
+wind, the sensors and the mission's parameters. Everything has a default, so the three-line file
+
+    preset: groundtruth
+    seed: 1
+    platform: {path: circle, speed_mps: 2.0}
+
+flies. Unknown keys are errors (a typo must not silently fall back to a default). ``load_scenario``
+turns every problem into one ``ConfigError`` line that says what is wrong and where.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from alight.errors import ConfigError
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PlatformSpec(_Strict):
+    """The ground vehicle that carries the pad."""
+
+    path: Literal["straight", "circle", "figure8", "tractor", "random"] = "straight"
+    speed_mps: NonNegFloat = 1.2
+    pad_size_m: PositiveFloat = 1.5
+    pad_height_m: NonNegFloat = 0.5
+    start_xy: tuple[float, float] | None = None
+    """Start of the path in W (m); None draws it from the seed inside the search area."""
+    heading_rad: float | None = None
+    """Initial heading (rad); None draws it from the seed."""
+    circle_radius_m: PositiveFloat = 10.0
+    figure8_length_m: PositiveFloat = 30.0
+    tractor_row_length_m: PositiveFloat = 30.0
+    tractor_turn_radius_m: PositiveFloat = 4.0
+    random_max_curvature: PositiveFloat = 0.15
+
+
+class WindSpec(_Strict):
+    """Wind: none, a steady air velocity, or the gust model of paper 004 Sec. IV-C."""
+
+    model: Literal["none", "steady", "gust"] = "none"
+    velocity_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Steady wind: the air's velocity in W (m/s)."""
+    gust_power_N: PositiveFloat = 7.0
+    """Gust model: the initial force ``power_init`` (N); 3.45 and 7.76 N are the 8 and 12 m/s cases."""
+
+
+class PerceptionSpec(_Strict):
+    """The ground-truth perception sensor (preset ``groundtruth``) and the detection timing of all presets."""
+
+    rate_hz: PositiveFloat = 20.0
+    noise_m: NonNegFloat = 0.05
+    """Standard deviation of the relative-position noise, per axis (m)."""
+    latency_s: NonNegFloat = 0.1
+    """Delay from image capture to the measurement reaching the estimator (s)."""
+    dropout_prob: Probability = 0.0
+    """Probability that a frame yields no detection."""
+    fov_deg: tuple[PositiveFloat, PositiveFloat] = (90.0, 64.0)
+    """Horizontal and vertical field of view of the downward camera (deg); the pad centre must be inside."""
+    max_range_m: PositiveFloat = 25.0
+    """Beyond this distance the pad is too small to detect (m)."""
+
+
+class FaultSpec(_Strict):
+    dropout_prob: Probability = 0.0
+    """Extra probability that a detection is lost."""
+    blackouts: list[tuple[float, float]] = Field(default_factory=list)
+    """Intervals [t0, t1] (s) with no detections at all."""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> FaultSpec:
+        for t0, t1 in self.blackouts:
+            if not t1 > t0:
+                raise ValueError(f"blackout interval ({t0}, {t1}) must have t1 > t0")
+        return self
+
+
+class SearchArea(_Strict):
+    x_min: float = -20.0
+    x_max: float = 20.0
+    y_min: float = -20.0
+    y_max: float = 20.0
+
+    @model_validator(mode="after")
+    def _ordered(self) -> SearchArea:
+        if not (self.x_max > self.x_min and self.y_max > self.y_min):
+            raise ValueError("search_area needs x_max > x_min and y_max > y_min")
+        return self
+
+
+class MissionSpec(_Strict):
+    takeoff_altitude_m: PositiveFloat = 4.0
+    explore_altitude_m: PositiveFloat = 8.0
+    track_height_m: PositiveFloat = 2.5
+    land_speed_mps: PositiveFloat = 0.4
+    motor_cutoff_range_m: PositiveFloat = 0.04
+    lost_timeout_s: PositiveFloat = 3.0
+    max_go_arounds: Annotated[int, Field(ge=0)] = 3
+    time_budget_s: PositiveFloat | None = None
+
+
+class PlannerSpec(_Strict):
+    n_candidates: Annotated[int, Field(ge=1, le=10000)] = 20
+    horizon_min_s: PositiveFloat = 1.0
+    horizon_max_s: PositiveFloat = 5.0
+    rate_hz: PositiveFloat = 50.0
+    adopt_threshold_m: NonNegFloat = 0.2
+
+    @model_validator(mode="after")
+    def _ordered(self) -> PlannerSpec:
+        if self.horizon_max_s < self.horizon_min_s:
+            raise ValueError("planner.horizon_max_s must be >= horizon_min_s")
+        return self
+
+
+class EstimatorSpec(_Strict):
+    use_turn_rate: bool = True
+    """Unicycle EKF with a turn-rate state (paper 000's model has none: set False for the paper's)."""
+    gating: bool = True
+
+
+class ContactSpec(_Strict):
+    gear_half_width_m: NonNegFloat = 0.2
+    max_vertical_speed_mps: PositiveFloat = 1.0
+    max_horizontal_speed_mps: PositiveFloat = 0.75
+    max_tilt_deg: PositiveFloat = 25.0
+
+
+class Scenario(_Strict):
+    """One mission."""
+
+    preset: str = "groundtruth"
+    seed: Annotated[int, Field(ge=0)] = 0
+    duration_s: PositiveFloat = 120.0
+    platform: PlatformSpec = Field(default_factory=PlatformSpec)
+    wind: WindSpec = Field(default_factory=WindSpec)
+    perception: PerceptionSpec = Field(default_factory=PerceptionSpec)
+    faults: FaultSpec = Field(default_factory=FaultSpec)
+    search_area: SearchArea = Field(default_factory=SearchArea)
+    mission: MissionSpec = Field(default_factory=MissionSpec)
+    planner: PlannerSpec = Field(default_factory=PlannerSpec)
+    estimator: EstimatorSpec = Field(default_factory=EstimatorSpec)
+    contact: ContactSpec = Field(default_factory=ContactSpec)
+    name: str | None = None
+    """Free text naming the scenario in reports."""
+
+    @model_validator(mode="after")
+    def _known_preset(self) -> Scenario:
+        from alight.mission.presets import PRESETS  # late import: presets import the blocks
+
+        if self.preset not in PRESETS:
+            raise ValueError(f"unknown preset '{self.preset}', expected one of {sorted(PRESETS)}")
+        return self
+
+    def with_seed(self, seed: int) -> Scenario:
+        return self.model_copy(update={"seed": int(seed)})
+
+
+def _format_error(source: str, err: ValidationError) -> str:
+    first = err.errors()[0]
+    where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    msg = first["msg"]
+    extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    got = first.get("input")
+    shown = "" if isinstance(got, dict | list) or got is None else f", got {got!r}"
+    return f"{source}: {where}: {msg}{shown}{extra}"
+
+
+def scenario_from_dict(data: Any, source: str = "scenario") -> Scenario:
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: expected a mapping of scenario keys, got {type(data).__name__}")
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(_format_error(source, err)) from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario YAML file; any problem becomes one ``ConfigError`` line."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{p}: no such scenario file")
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        line = getattr(getattr(err, "problem_mark", None), "line", None)
+        where = f" (line {line + 1})" if line is not None else ""
+        raise ConfigError(f"{p}: not valid YAML{where}: {str(err).splitlines()[0]}") from None
+    return scenario_from_dict(data, str(p))

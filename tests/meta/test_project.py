@@ -1,0 +1,69 @@
+"""Project-level contracts: the README's commands, CI, and the direction of imports."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SRC = ROOT / "src" / "alight"
+
+# Pipeline stages may import only what is upstream of them and the shared models (DESIGN.md).
+PIPELINE_PACKAGES = ("perception", "estimation", "planning", "control", "mission")
+FORBIDDEN_FOR_PIPELINE = ("alight.sim", "alight.evaluation", "alight.cli", "matplotlib", "plotly")
+FORBIDDEN_FOR_SIM = (
+    "alight.perception",
+    "alight.estimation",
+    "alight.planning",
+    "alight.control",
+    "alight.mission",
+    "alight.evaluation",
+)
+
+
+def _readme_commands() -> list[str]:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    return re.findall(r"```bash\n(.+?)\n```", text)
+
+
+def test_readme_starts_with_the_two_commands() -> None:
+    commands = _readme_commands()
+    assert len(commands) >= 2
+    assert "pip install" in commands[0] and "alight fly" in commands[0] and "--out" in commands[0]
+    assert "pytest" in commands[1]
+
+
+def test_ci_runs_exactly_the_readme_test_command() -> None:
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert _readme_commands()[1] in ci
+
+
+def _imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+    return names
+
+
+@pytest.mark.parametrize("package", PIPELINE_PACKAGES)
+def test_pipeline_never_imports_the_simulator_or_plots(package: str) -> None:
+    for path in (SRC / package).rglob("*.py"):
+        bad = {n for n in _imports(path) if n.startswith(FORBIDDEN_FOR_PIPELINE)}
+        assert not bad, f"{path.relative_to(ROOT)} imports {sorted(bad)}"
+
+
+def test_simulator_never_imports_the_pipeline() -> None:
+    for path in (SRC / "sim").rglob("*.py"):
+        bad = {n for n in _imports(path) if n.startswith(FORBIDDEN_FOR_SIM)}
+        assert not bad, f"{path.relative_to(ROOT)} imports {sorted(bad)}"
+
+
+def test_license_is_mit() -> None:
+    assert (ROOT / "LICENSE").read_text(encoding="utf-8").startswith("MIT License")
