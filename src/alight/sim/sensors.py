@@ -1,0 +1,465 @@
+"""Simulated onboard sensors: IMU, VIO-like odometry and a downward range finder.
+
+Each sensor takes ground truth and a ``numpy.random.Generator``; it splits a child generator off it at
+construction (one draw from the caller's generator) and draws its noise from the child in blocks, so a
+sample costs a few microseconds and the noise sequence does not depend on how calls are batched. The
+sensors do not schedule themselves: the runner calls ``measure`` once per sample period
+(``config.rate_hz``); random walks advance by one nominal period per call.
+
+Attitudes come in as ``q_WB`` (x, y, z, w), as the quadrotor state stores them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from alight.types import GRAVITY_MPS2, EgoState, FloatArray
+
+from .platform import PlatformTruth
+
+
+class _NormalStream:
+    """Standard normal rows of a fixed width, drawn in blocks from a child generator."""
+
+    def __init__(self, rng: np.random.Generator, width: int, block: int = 512) -> None:
+        self._rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
+        self._width = width
+        self._block = block
+        self._buf = np.empty((0, width))
+        self._i = 0
+
+    def row(self) -> FloatArray:
+        if self._i >= self._buf.shape[0]:
+            self._buf = self._rng.standard_normal((self._block, self._width))
+            self._i = 0
+        r = self._buf[self._i]
+        self._i += 1
+        return r
+
+    def take(self, n: int) -> FloatArray:
+        """The next n rows, shape (n, width): the same numbers n calls of :meth:`row` would give."""
+        out = np.empty((n, self._width))
+        k = 0
+        while k < n:
+            if self._i >= self._buf.shape[0]:
+                self._buf = self._rng.standard_normal((self._block, self._width))
+                self._i = 0
+            m = min(n - k, self._buf.shape[0] - self._i)
+            out[k : k + m] = self._buf[self._i : self._i + m]
+            self._i += m
+            k += m
+        return out
+
+
+def _f64(a: FloatArray) -> FloatArray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+@njit(cache=True)
+def _body_axis(q: FloatArray, k: int) -> tuple[float, float, float]:
+    """Column k of R_WB for the unit quaternion q = (x, y, z, w): the body axis k in W."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    if k == 0:
+        return 1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)
+    if k == 1:
+        return 2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w)
+    return 2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)
+
+
+def _rotmat_many(q: FloatArray) -> FloatArray:
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    R = np.empty((q.shape[0], 3, 3))
+    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    R[:, 0, 1] = 2 * (x * y - z * w)
+    R[:, 0, 2] = 2 * (x * z + y * w)
+    R[:, 1, 0] = 2 * (x * y + z * w)
+    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    R[:, 1, 2] = 2 * (y * z - x * w)
+    R[:, 2, 0] = 2 * (x * z - y * w)
+    R[:, 2, 1] = 2 * (y * z + x * w)
+    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def _positive(name: str, v: float) -> None:
+    if not (v > 0.0 and math.isfinite(v)):
+        raise ValueError(f"{name} must be positive and finite, got {v}")
+
+
+def _non_negative(obj: object, names: tuple[str, ...]) -> None:
+    for name in names:
+        v = getattr(obj, name)
+        if not (v >= 0.0 and math.isfinite(v)):
+            raise ValueError(f"{name} must be >= 0 and finite, got {v}")
+
+
+# --------------------------------------------------------------------------------------------------
+# IMU
+# --------------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _imu_sample(
+    a_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray, bias: FloatArray, n: FloatArray, scale: FloatArray
+) -> FloatArray:
+    """(specific force, body rate) stacked (6,); steps the biases (6,) in place."""
+    out = np.empty(6)
+    fx, fy, fz = a_WB[0], a_WB[1], a_WB[2] + GRAVITY_MPS2  # a_WB - g_W
+    for k in range(3):
+        ax, ay, az = _body_axis(q_WB, k)
+        out[k] = ax * fx + ay * fy + az * fz + bias[k] + scale[k] * n[k]
+        out[3 + k] = w_WB_B[k] + bias[3 + k] + scale[3 + k] * n[3 + k]
+    for k in range(6):
+        bias[k] += scale[6 + k] * n[6 + k]
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImuConfig:
+    """A consumer MEMS IMU (orders of magnitude of the Bosch BMI088 / TDK ICM-42688 / MPU-6000 data
+    sheets, 100-400 ug/sqrt(Hz) and 0.004-0.014 deg/s/sqrt(Hz), and of Kalibr's example IMU models)."""
+
+    rate_hz: float = 200.0
+    """Sample rate (Hz)."""
+    accel_noise_density: float = 0.003
+    """White noise of the accelerometer (m/s^2/sqrt(Hz)); per-sample std = density * sqrt(rate)."""
+    gyro_noise_density: float = 3.0e-4
+    """White noise of the gyroscope (rad/s/sqrt(Hz))."""
+    accel_bias_random_walk: float = 5.0e-4
+    """Accelerometer bias random walk (m/s^3/sqrt(Hz)); per-sample std = rw * sqrt(1 / rate)."""
+    gyro_bias_random_walk: float = 2.0e-5
+    """Gyroscope bias random walk (rad/s^2/sqrt(Hz))."""
+    accel_bias_init_std: float = 0.05
+    """Std of the accelerometer's turn-on bias per axis (m/s^2)."""
+    gyro_bias_init_std: float = 0.003
+    """Std of the gyroscope's turn-on bias per axis (rad/s)."""
+
+    def __post_init__(self) -> None:
+        _positive("rate_hz", self.rate_hz)
+        _non_negative(
+            self,
+            (
+                "accel_noise_density",
+                "gyro_noise_density",
+                "accel_bias_random_walk",
+                "gyro_bias_random_walk",
+                "accel_bias_init_std",
+                "gyro_bias_init_std",
+            ),
+        )
+
+
+class Imu:
+    """Specific force ``R_WB^T (a_WB - g_W) + b_a + n_a`` and body rate ``w_WB_B + b_g + n_g``, both in B.
+
+    ``b_a``, ``b_g`` start at a random turn-on bias and random-walk; the noise is white with the
+    per-sample std ``density * sqrt(rate_hz)`` (the discrete equivalent of a continuous white noise of
+    that density sampled at that rate).
+    """
+
+    def __init__(self, config: ImuConfig, rng: np.random.Generator) -> None:
+        self.config = config
+        self._stream = _NormalStream(rng, 12)
+        b0 = self._stream.row()
+        self._bias = np.concatenate(
+            [config.accel_bias_init_std * b0[0:3], config.gyro_bias_init_std * b0[3:6]]
+        )
+        sq = math.sqrt(config.rate_hz)
+        sq_dt = 1.0 / sq
+        self._scale = np.array(
+            [config.accel_noise_density * sq] * 3
+            + [config.gyro_noise_density * sq] * 3
+            + [config.accel_bias_random_walk * sq_dt] * 3
+            + [config.gyro_bias_random_walk * sq_dt] * 3
+        )
+
+    @property
+    def accel_bias(self) -> FloatArray:
+        """Current accelerometer bias (m/s^2), shape (3,) (truth, for logs and tests)."""
+        return self._bias[0:3].copy()
+
+    @property
+    def gyro_bias(self) -> FloatArray:
+        """Current gyroscope bias (rad/s), shape (3,)."""
+        return self._bias[3:6].copy()
+
+    @property
+    def accel_noise_std(self) -> float:
+        """Per-sample std of the accelerometer noise (m/s^2)."""
+        return self.config.accel_noise_density * math.sqrt(self.config.rate_hz)
+
+    @property
+    def gyro_noise_std(self) -> float:
+        """Per-sample std of the gyroscope noise (rad/s)."""
+        return self.config.gyro_noise_density * math.sqrt(self.config.rate_hz)
+
+    def measure(
+        self, a_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """One sample from the true acceleration a_WB (3,) m/s^2 in W, attitude q_WB (4,) and body rate
+        w_WB_B (3,) rad/s (float64 arrays). Returns (specific force in B (3,) m/s^2, body rate in B (3,)
+        rad/s); the biases then take one random-walk step."""
+        out = _imu_sample(_f64(a_WB), _f64(q_WB), _f64(w_WB_B), self._bias, self._stream.row(), self._scale)
+        return out[0:3], out[3:6]
+
+    def measure_many(
+        self, a_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """N consecutive samples at once (the same numbers as N calls of :meth:`measure`): a_WB (N, 3),
+        q_WB (N, 4), w_WB_B (N, 3) -> (specific forces (N, 3), body rates (N, 3))."""
+        a = np.asarray(a_WB, dtype=np.float64)
+        n_s = a.shape[0]
+        n = self._stream.take(n_s) * self._scale
+        # bias of sample k: initial + the first k increments
+        ba = self._bias[0:3] + np.cumsum(n[:, 6:9], axis=0) - n[:, 6:9]
+        bg = self._bias[3:6] + np.cumsum(n[:, 9:12], axis=0) - n[:, 9:12]
+        R = _rotmat_many(np.asarray(q_WB, dtype=np.float64))
+        f = a.copy()
+        f[:, 2] += GRAVITY_MPS2
+        acc = np.einsum("nji,nj->ni", R, f) + ba + n[:, 0:3]
+        gyr = np.asarray(w_WB_B, dtype=np.float64) + bg + n[:, 3:6]
+        self._bias[0:3] = ba[-1] + n[-1, 6:9]
+        self._bias[3:6] = bg[-1] + n[-1, 9:12]
+        return acc, gyr
+
+
+# --------------------------------------------------------------------------------------------------
+# Odometry
+# --------------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _odometry_sample(
+    p: FloatArray,
+    v: FloatArray,
+    q: FloatArray,
+    w: FloatArray,
+    drift: FloatArray,
+    n: FloatArray,
+    scale: FloatArray,
+) -> FloatArray:
+    """(p, v, q, w) of the odometry stacked (13,); steps the drift (4,) in place."""
+    out = np.empty(13)
+    c, s = math.cos(drift[3]), math.sin(drift[3])
+    out[0] = c * p[0] - s * p[1] + drift[0] + scale[0] * n[0]
+    out[1] = s * p[0] + c * p[1] + drift[1] + scale[1] * n[1]
+    out[2] = p[2] + drift[2] + scale[2] * n[2]
+    out[3] = c * v[0] - s * v[1] + scale[3] * n[3]
+    out[4] = s * v[0] + c * v[1] + scale[4] * n[4]
+    out[5] = v[2] + scale[5] * n[5]
+    # q_z(psi) (x) q: a rotation about W z
+    sz, cz = math.sin(0.5 * drift[3]), math.cos(0.5 * drift[3])
+    ax = cz * q[0] - sz * q[1]
+    ay = cz * q[1] + sz * q[0]
+    az = cz * q[2] + sz * q[3]
+    aw = cz * q[3] - sz * q[2]
+    # (x) exp(theta / 2): body-frame rotation noise
+    tx, ty, tz = scale[6] * n[6], scale[7] * n[7], scale[8] * n[8]
+    ang = math.sqrt(tx * tx + ty * ty + tz * tz)
+    k = 0.5 if ang == 0.0 else math.sin(0.5 * ang) / ang
+    bx, by, bz, bw = k * tx, k * ty, k * tz, math.cos(0.5 * ang)
+    qx = aw * bx + ax * bw + ay * bz - az * by
+    qy = aw * by - ax * bz + ay * bw + az * bx
+    qz = aw * bz + ax * by - ay * bx + az * bw
+    qw = aw * bw - ax * bx - ay * by - az * bz
+    nq = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    out[6] = qx / nq
+    out[7] = qy / nq
+    out[8] = qz / nq
+    out[9] = qw / nq
+    for j in range(3):
+        out[10 + j] = w[j] + scale[9 + j] * n[9 + j]
+    for j in range(4):
+        drift[j] += scale[12 + j] * n[12 + j]
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class OdometryConfig:
+    """A visual-inertial odometry pipeline's output (40 Hz as in paper 000 Sec. III-A)."""
+
+    rate_hz: float = 40.0
+    """Output rate (Hz)."""
+    position_noise_m: float = 0.01
+    """White noise on the position per axis (m)."""
+    velocity_noise_mps: float = 0.02
+    """White noise on the velocity per axis (m/s)."""
+    attitude_noise_rad: float = 0.005
+    """White rotation noise per body axis (rad)."""
+    rate_noise_radps: float = 0.005
+    """White noise on the body rates per axis (rad/s)."""
+    position_drift_density: float = 0.005
+    """Random walk of the position offset per axis (m/sqrt(s)): 3.9 cm std after 60 s."""
+    yaw_drift_density: float = 5.0e-4
+    """Random walk of the odometry frame's heading (rad/sqrt(s)): 0.22 deg std after 60 s."""
+
+    def __post_init__(self) -> None:
+        _positive("rate_hz", self.rate_hz)
+        _non_negative(
+            self,
+            (
+                "position_noise_m",
+                "velocity_noise_mps",
+                "attitude_noise_rad",
+                "rate_noise_radps",
+                "position_drift_density",
+                "yaw_drift_density",
+            ),
+        )
+
+
+class Odometry:
+    """VIO-like ego state: the truth seen from an odometry frame that drifts away from W.
+
+    The drift is a heading ``psi_d`` and an offset ``b_p``, both random walks (VIO is unobservable in
+    position and yaw, so those drift; roll and pitch stay anchored by gravity)::
+
+        p = R_z(psi_d) p_WB + b_p + n_p,   v = R_z(psi_d) v_WB + n_v,
+        q = q_z(psi_d) (x) q_WB (x) exp(n_theta / 2),   w = w_WB_B + n_w
+
+    The rotation of the frame is about W's origin (the take-off point, where VIO starts).
+    """
+
+    def __init__(self, config: OdometryConfig, rng: np.random.Generator) -> None:
+        self.config = config
+        self._stream = _NormalStream(rng, 16)
+        self._drift = np.zeros(4)  # position offset (3), heading (1)
+        c = config
+        sq_dt = 1.0 / math.sqrt(c.rate_hz)
+        self._scale = np.array(
+            [c.position_noise_m] * 3
+            + [c.velocity_noise_mps] * 3
+            + [c.attitude_noise_rad] * 3
+            + [c.rate_noise_radps] * 3
+            + [c.position_drift_density * sq_dt] * 3
+            + [c.yaw_drift_density * sq_dt]
+        )
+
+    @property
+    def drift_p(self) -> FloatArray:
+        """Current position offset of the odometry frame (m), shape (3,)."""
+        return self._drift[0:3].copy()
+
+    @property
+    def drift_yaw(self) -> float:
+        """Current heading of the odometry frame relative to W (rad)."""
+        return float(self._drift[3])
+
+    def measure(
+        self, t: float, p_WB: FloatArray, v_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray
+    ) -> EgoState:
+        """One odometry output at time t (s) from the truth p_WB (3,) m, v_WB (3,) m/s, q_WB (4,),
+        w_WB_B (3,) rad/s; the drift then takes one random-walk step."""
+        out = _odometry_sample(
+            _f64(p_WB), _f64(v_WB), _f64(q_WB), _f64(w_WB_B), self._drift, self._stream.row(), self._scale
+        )
+        return EgoState(t=float(t), p_WB=out[0:3], v_WB=out[3:6], q_WB=out[6:10], w_WB_B=out[10:13])
+
+
+# --------------------------------------------------------------------------------------------------
+# Range finder
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class RangeFinderConfig:
+    """A TeraRanger One-like time-of-flight distance sensor pointing along -z_B.
+
+    The real sensor measures 0.2 to 14 m; the simulator's default ``min_range_m`` is 0 because the
+    landing logic wants readings down to touchdown (set 0.2 to model the real blind zone).
+    """
+
+    rate_hz: float = 100.0
+    """Sample rate (Hz)."""
+    max_range_m: float = 14.0
+    """Longest range reported (m)."""
+    min_range_m: float = 0.0
+    """Shortest range reported (m)."""
+    noise_std_m: float = 0.02
+    """White noise on the range (m)."""
+    origin_B: tuple[float, float, float] = (0.0, 0.0, -0.10)
+    """Sensor position in B (m): by default at the landing-gear feet under the body origin (the
+    default airframe's gear height)."""
+
+    def __post_init__(self) -> None:
+        _positive("rate_hz", self.rate_hz)
+        _positive("max_range_m", self.max_range_m)
+        _non_negative(self, ("min_range_m", "noise_std_m"))
+        if self.min_range_m >= self.max_range_m:
+            raise ValueError("min_range_m must be below max_range_m")
+
+
+@njit(cache=True)
+def range_to_surface(
+    o_W: FloatArray, d_W: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
+) -> float:
+    """Distance (m) along the unit ray o_W + lambda d_W, lambda >= 0, to the first surface: the pad
+    square (at height p_WP[2], centred at p_WP, heading ``yaw``) or the ground z = 0. ``inf`` when the
+    ray does not point down. The platform's body under the pad is not modelled."""
+    dz = d_W[2]
+    if dz >= 0.0:
+        return math.inf
+    h = p_WP[2]
+    if o_W[2] >= h:
+        lam = (o_W[2] - h) / -dz
+        hx = o_W[0] + lam * d_W[0] - p_WP[0]
+        hy = o_W[1] + lam * d_W[1] - p_WP[1]
+        c, s = math.cos(yaw), math.sin(yaw)
+        half = 0.5 * pad_size_m
+        if abs(c * hx + s * hy) <= half and abs(-s * hx + c * hy) <= half:
+            return lam
+    return max(o_W[2], 0.0) / -dz
+
+
+@njit(cache=True)
+def _true_range(
+    p_WB: FloatArray, q_WB: FloatArray, origin_B: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
+) -> float:
+    o = np.empty(3)
+    d = np.empty(3)
+    for k in range(3):
+        o[k] = p_WB[k]
+    for k in range(3):
+        ax, ay, az = _body_axis(q_WB, k)
+        o[0] += ax * origin_B[k]
+        o[1] += ay * origin_B[k]
+        o[2] += az * origin_B[k]
+    zx, zy, zz = _body_axis(q_WB, 2)
+    d[0], d[1], d[2] = -zx, -zy, -zz
+    return range_to_surface(o, d, p_WP, yaw, pad_size_m)
+
+
+class RangeFinder:
+    """Range along -z_B to the pad or the ground, with white noise.
+
+    Out-of-range readings follow ROS REP 117, as the TeraRanger ROS driver does: ``-inf`` when the
+    true range is below ``min_range_m``, ``+inf`` when it is beyond ``max_range_m`` or nothing is hit
+    (ray pointing up); use ``math.isfinite`` to test validity. Noisy in-range readings are clipped at 0.
+    """
+
+    def __init__(self, config: RangeFinderConfig, rng: np.random.Generator) -> None:
+        self.config = config
+        self._stream = _NormalStream(rng, 1, block=1024)
+        self._origin_B = np.array(config.origin_B, dtype=np.float64)
+
+    def true_range(
+        self, p_WB: FloatArray, q_WB: FloatArray, platform: PlatformTruth, pad_size_m: float
+    ) -> float:
+        """Noise-free range (m) from the truth; ``inf`` when the ray does not hit anything."""
+        return _true_range(_f64(p_WB), _f64(q_WB), self._origin_B, platform.p_WP, platform.yaw, pad_size_m)
+
+    def measure(
+        self, p_WB: FloatArray, q_WB: FloatArray, platform: PlatformTruth, pad_size_m: float
+    ) -> float:
+        """One reading (m) from the truth p_WB (3,), q_WB (4,), the platform's state and pad side (m)."""
+        r = self.true_range(p_WB, q_WB, platform, pad_size_m)
+        noise = float(self._stream.row()[0]) * self.config.noise_std_m
+        if r > self.config.max_range_m:
+            return math.inf
+        if r < self.config.min_range_m:
+            return -math.inf
+        return max(r + noise, 0.0)

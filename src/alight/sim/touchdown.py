@@ -1,0 +1,129 @@
+"""Judging the first contact of the vehicle with the pad, the platform or the ground (ground truth).
+
+DESIGN.md "Landing outcome": ``landed`` when the vehicle's centre is inside the pad footprint shrunk by
+the landing gear's half-width, the vertical speed relative to the pad is at most 1.0 m/s, the horizontal
+one at most 0.75 m/s and the tilt at most 25 deg; ``crashed`` on the ground, on the platform outside that
+footprint, or beyond those limits.
+
+The contact geometry: the feet are ``gear_height`` below the body origin (upright vehicle, as specified;
+a tilted vehicle's lowest foot is lower by up to ``gear_half_width sin(tilt)``, which matters only for
+crashes). The surface under the vehicle is the pad when the gear's footprint overlaps the pad, i.e. the
+centre is inside the pad square grown by ``gear_half_width`` (the footprint is taken as aligned with the
+pad), and the ground otherwise. Touching the pad from the side (feet below the pad height while over
+it) counts as a platform contact too.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from alight.types import FloatArray, Outcome
+
+from .platform import PlatformTruth, pad_contains
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactLimits:
+    """What a landing must respect (scenario parameters)."""
+
+    gear_half_width: float = 0.2
+    """Half the landing gear's footprint (m); the centre must stay this far inside the pad's edges."""
+    max_vertical_speed_mps: float = 1.0
+    """Largest vertical speed relative to the pad at contact (m/s)."""
+    max_horizontal_speed_mps: float = 0.75
+    """Largest horizontal speed relative to the pad at contact (m/s)."""
+    max_tilt_deg: float = 25.0
+    """Largest angle between the body z axis and the vertical at contact (deg)."""
+
+    def __post_init__(self) -> None:
+        for name in ("gear_half_width", "max_vertical_speed_mps", "max_horizontal_speed_mps", "max_tilt_deg"):
+            v = getattr(self, name)
+            if not (v >= 0.0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be >= 0 and finite, got {v}")
+
+
+@dataclass(frozen=True, slots=True)
+class Contact:
+    """The judged first contact."""
+
+    outcome: Outcome
+    """``Outcome.LANDED`` or ``Outcome.CRASHED``."""
+    surface: str
+    """What was touched: ``pad`` or ``ground``."""
+    reason: str
+    """Why it crashed (``ground``, ``off_footprint``, ``vertical_speed``, ``horizontal_speed``, ``tilt``,
+    comma-separated), empty when landed."""
+    touchdown_error_m: float
+    """Horizontal distance between the vehicle's centre and the pad's centre (m)."""
+    rel_vertical_speed_mps: float
+    """|v_z| of the vehicle relative to the touched surface (m/s)."""
+    rel_horizontal_speed_mps: float
+    """Horizontal speed of the vehicle relative to the touched surface (m/s)."""
+    rel_speed_mps: float
+    """Speed relative to the touched surface (m/s)."""
+    tilt_rad: float
+    """Angle between the body z axis and the vertical (rad)."""
+
+
+def judge_contact(
+    p_WB: FloatArray,
+    v_WB: FloatArray,
+    R_WB: FloatArray,
+    platform: PlatformTruth,
+    pad_size_m: float,
+    gear_height: float,
+    limits: ContactLimits,
+) -> Contact | None:
+    """The contact at this instant, or None while the feet are above the surface below.
+
+    ``p_WB`` (3,) m, ``v_WB`` (3,) m/s, ``R_WB`` (3, 3): the vehicle's true state; ``platform``: the
+    platform's true state; ``pad_size_m``: side of the pad (m); ``gear_height``: body origin above the
+    feet (m). Call at every dynamics step after take-off (the vehicle standing on the ground before
+    take-off would count as a ground crash) and keep the first non-None answer. Nothing can be touched
+    while ``p_WB[2] - gear_height`` is above the pad height, so a runner can skip the call (and the
+    platform state) until then.
+    """
+    feet_z = float(p_WB[2]) - gear_height
+    if feet_z > platform.p_WP[2] and feet_z > 0.0:
+        return None  # the common case, kept cheap: above every surface
+    p_xy = np.asarray(p_WB[:2], dtype=np.float64)
+    over_platform = bool(pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, -limits.gear_half_width))
+    if over_platform and feet_z <= float(platform.p_WP[2]):
+        surface = "pad"
+        v_rel = np.asarray(v_WB, dtype=np.float64) - platform.v_WP
+    elif feet_z <= 0.0:
+        surface = "ground"
+        v_rel = np.asarray(v_WB, dtype=np.float64)
+    else:
+        return None
+
+    vz = abs(float(v_rel[2]))
+    vh = math.hypot(float(v_rel[0]), float(v_rel[1]))
+    tilt = math.acos(min(1.0, max(-1.0, float(R_WB[2, 2]))))
+    err = math.hypot(float(p_WB[0] - platform.p_WP[0]), float(p_WB[1] - platform.p_WP[1]))
+
+    reasons = []
+    if surface == "ground":
+        reasons.append("ground")
+    else:
+        if not pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, limits.gear_half_width):
+            reasons.append("off_footprint")
+        if vz > limits.max_vertical_speed_mps:
+            reasons.append("vertical_speed")
+        if vh > limits.max_horizontal_speed_mps:
+            reasons.append("horizontal_speed")
+        if tilt > math.radians(limits.max_tilt_deg):
+            reasons.append("tilt")
+    return Contact(
+        outcome=Outcome.CRASHED if reasons else Outcome.LANDED,
+        surface=surface,
+        reason=",".join(reasons),
+        touchdown_error_m=err,
+        rel_vertical_speed_mps=vz,
+        rel_horizontal_speed_mps=vh,
+        rel_speed_mps=math.sqrt(vz * vz + vh * vh),
+        tilt_rad=tilt,
+    )
