@@ -26,13 +26,15 @@ GRAVITY_MPS2 = 9.81
 
 G_W: FloatArray = np.array([0.0, 0.0, -GRAVITY_MPS2])
 G_W.setflags(write=False)
+_ZERO3: FloatArray = np.zeros(3)
+_ZERO3.setflags(write=False)
 
 
 def _frozen(a: object, shape: tuple[int, ...], name: str) -> FloatArray:
     arr = np.array(a, dtype=np.float64)  # a copy, so the caller keeps ownership of its buffer
     if arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    arr.setflags(write=False)
+    arr.flags.writeable = False
     return arr
 
 
@@ -116,19 +118,22 @@ class EgoState:
     """Attitude, unit quaternion (x, y, z, w) rotating B-vectors into W, shape (4,)."""
     w_WB_B: FloatArray
     """Body rates, expressed in B (rad/s), shape (3,)."""
-    a_WB: FloatArray = field(default_factory=lambda: np.zeros(3))
+    a_WB: FloatArray = None  # type: ignore[assignment]  # None becomes a shared read-only zero
     """Acceleration of the body in W (m/s^2) where the estimator provides it, shape (3,)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "p_WB", _frozen(self.p_WB, (3,), "p_WB"))
         object.__setattr__(self, "v_WB", _frozen(self.v_WB, (3,), "v_WB"))
         q = _frozen(self.q_WB, (4,), "q_WB")
-        n = float(np.linalg.norm(q))
+        n = math.sqrt(float(q @ q))
         if not (abs(n - 1.0) < 1e-6):
             raise ValueError(f"q_WB must be a unit quaternion, norm is {n}")
         object.__setattr__(self, "q_WB", q)
         object.__setattr__(self, "w_WB_B", _frozen(self.w_WB_B, (3,), "w_WB_B"))
-        object.__setattr__(self, "a_WB", _frozen(self.a_WB, (3,), "a_WB"))
+        if self.a_WB is None:
+            object.__setattr__(self, "a_WB", _ZERO3)
+        else:
+            object.__setattr__(self, "a_WB", _frozen(self.a_WB, (3,), "a_WB"))
 
     @property
     def R_WB(self) -> FloatArray:
