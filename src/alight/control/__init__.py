@@ -1,1 +1,80 @@
-"""control"""
+"""Control: reference -> collective thrust + body rates (high level) -> torques (rate loop) -> rotor
+thrusts (mixer). See ``README.md`` in this folder.
+
+``REGISTRY`` maps a high-level controller's name to a factory ``(airframe, **options) -> Controller``;
+a preset picks one by name. The low level (``low_level``) is a numba kernel on arrays that the simulator
+calls inside its physics loop.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+from alight.airframe import Airframe
+from alight.control.high_level import (
+    HighLevelController,
+    HighLevelGains,
+    attitude_from_accel_yaw,
+    body_rates_from_jerk,
+    high_level_kernel,
+    pack_high_level_params,
+)
+from alight.control.mixer import PriorityMixer, low_level, mix
+from alight.control.rate import BodyRateController, RateControllerGains, pack_low_level_params, rate_torque
+from alight.types import Command, EgoState, FloatArray, Reference
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """High level: ``command(ego, reference) -> Command`` (collective thrust in N, body rates in B)."""
+
+    def command(self, ego: EgoState, ref: Reference) -> Command: ...
+
+    def reset(self) -> None:
+        """Forget internal state (integrators, adaptive estimates), e.g. at a mode change."""
+        ...
+
+
+@runtime_checkable
+class RateController(Protocol):
+    """Body-rate loop: ``torque(w_cmd, w) -> torque_B`` (N m, shape (3,))."""
+
+    def torque(self, w_cmd: FloatArray, w: FloatArray) -> FloatArray: ...
+
+
+@runtime_checkable
+class Mixer(Protocol):
+    """Allocation with saturation: ``mix(thrust_N, torque_B) -> rotor thrusts`` (N, shape (4,))."""
+
+    def mix(self, thrust_N: float, torque_B: FloatArray) -> FloatArray: ...
+
+
+def _faessler2017(airframe: Airframe, **options: Any) -> Controller:
+    return HighLevelController(airframe, HighLevelGains(**options))
+
+
+REGISTRY: dict[str, Callable[..., Controller]] = {
+    "faessler2017": _faessler2017,
+}
+"""High-level controllers by name: ``REGISTRY[name](airframe, **gain_overrides)``."""
+
+__all__ = [
+    "REGISTRY",
+    "BodyRateController",
+    "Controller",
+    "HighLevelController",
+    "HighLevelGains",
+    "Mixer",
+    "PriorityMixer",
+    "RateController",
+    "RateControllerGains",
+    "attitude_from_accel_yaw",
+    "body_rates_from_jerk",
+    "high_level_kernel",
+    "low_level",
+    "mix",
+    "pack_high_level_params",
+    "pack_low_level_params",
+    "rate_torque",
+]
