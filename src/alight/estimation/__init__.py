@@ -1,1 +1,113 @@
-"""estimation"""
+"""State estimation: the vehicle's own state (IMU + odometry) and the landing platform's.
+
+Two stages, one Protocol each:
+
+- :class:`EgoEstimator` fuses IMU samples and odometry into an :class:`alight.types.EgoState`
+  (``EGO_REGISTRY``);
+- :class:`PlatformEstimator` turns :class:`alight.types.PlatformMeasurement` s into a
+  :class:`alight.types.PlatformEstimate` and predictions ahead (``REGISTRY``).
+
+A registry maps a configuration name to a factory taking the block's keyword parameters, e.g.
+``REGISTRY["ekf_unicycle"](use_turn_rate=True)``. See ``README.md`` in this folder.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
+from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
+from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
+
+
+@runtime_checkable
+class PlatformEstimator(Protocol):
+    """Estimates the platform (pad centre) from measurements that arrive late but in capture order."""
+
+    @property
+    def initialized(self) -> bool:
+        """True once the estimate has a heading and speed (not just a position)."""
+        ...
+
+    def reset(self) -> None:
+        """Forget everything."""
+        ...
+
+    def predict(self, t: float) -> None:
+        """Tell the estimator the current time (s); implementations may or may not move their state."""
+        ...
+
+    def update(self, measurement: PlatformMeasurement) -> bool:
+        """Fuse a measurement (``measurement.t`` is its capture time). True when it was used."""
+        ...
+
+    def state(self, t: float) -> PlatformEstimate:
+        """The estimate at time ``t`` (s)."""
+        ...
+
+    def predict_ahead(self, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Positions (k, 3), velocities (k, 3), accelerations (k, 3) and headings (k,) at ``times`` (k,)."""
+        ...
+
+
+@runtime_checkable
+class EgoEstimator(Protocol):
+    """Estimates the vehicle's own state from IMU samples and odometry."""
+
+    @property
+    def initialized(self) -> bool: ...
+
+    @property
+    def covariance(self) -> FloatArray:
+        """Error-state covariance."""
+        ...
+
+    def initialize(self, t: float, p_WB: FloatArray, v_WB: FloatArray, q_WB: FloatArray) -> None: ...
+
+    def predict_imu(self, t: float, f_B: FloatArray, w_B: FloatArray) -> None:
+        """Propagate with one IMU sample: specific force (m/s^2) and rate (rad/s) in B."""
+        ...
+
+    def update_odometry(
+        self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
+    ) -> bool: ...
+
+    def state(self) -> EgoState: ...
+
+
+def _platform_ekf(**params: Any) -> PlatformEkf:
+    return PlatformEkf(PlatformEkfConfig(**params))
+
+
+def _platform_ekf_ctrv(**params: Any) -> PlatformEkf:
+    params.setdefault("use_turn_rate", True)
+    params.setdefault("heading_noise", 0.05)
+    return PlatformEkf(PlatformEkfConfig(**params))
+
+
+def _ego_ekf(**params: Any) -> EgoEkf:
+    return EgoEkf(EgoEkfConfig(**params))
+
+
+REGISTRY: dict[str, Callable[..., PlatformEstimator]] = {
+    "ekf_unicycle": _platform_ekf,
+    "ekf_unicycle_turn": _platform_ekf_ctrv,
+}
+"""Platform estimators by name; each factory takes the estimator's config fields as keywords."""
+
+EGO_REGISTRY: dict[str, Callable[..., EgoEstimator]] = {
+    "eskf": _ego_ekf,
+}
+"""Ego estimators by name; each factory takes the estimator's config fields as keywords."""
+
+__all__ = [
+    "EGO_REGISTRY",
+    "REGISTRY",
+    "EgoEkf",
+    "EgoEkfConfig",
+    "EgoEstimator",
+    "PlatformEkf",
+    "PlatformEkfConfig",
+    "PlatformEstimator",
+]
