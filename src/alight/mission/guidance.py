@@ -17,15 +17,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from alight.estimation import PlatformEstimator
 from alight.mission.state_machine import MissionConfig
 from alight.planning.candidates import CandidatePlanner, sample_end_times
 from alight.planning.exploration import ExplorationRoute, footprint_width_m, lawnmower_waypoints
 from alight.planning.min_jerk import MinJerkTrajectory
 from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference
+
+if TYPE_CHECKING:
+    from alight.estimation import PlatformEstimator
 
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)

@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from alight.control.high_level import HighLevelController
-from alight.estimation import PlatformEstimator
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
-from alight.perception import Detector, Geolocator
 from alight.types import (
     Command,
     EgoState,
@@ -32,6 +31,10 @@ from alight.types import (
     Reference,
     quat_to_rotmat,
 )
+
+if TYPE_CHECKING:  # the Protocols, for annotations only
+    from alight.estimation import PlatformEstimator
+    from alight.perception import Detector, Geolocator
 
 _ZERO3 = np.zeros(3)
 
@@ -125,11 +128,14 @@ class Pipeline:
 
     # -- sensors ----------------------------------------------------------------------------------------
     def on_imu(self, t: float, f_B: FloatArray, w_B: FloatArray) -> None:
-        self.ego_estimator.predict_imu(t, f_B, w_B)
+        if self.ego_estimator.initialized:  # the first odometry message initialises the filter
+            self.ego_estimator.predict_imu(t, f_B, w_B)
+            self._ego = None
 
     def on_odometry(
         self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
     ) -> None:
+        self._ego = None
         if not self.ego_estimator.initialized:
             self.ego_estimator.initialize(t, p_WB, _ZERO3 if v_WB is None else v_WB, q_WB)
             return
@@ -173,7 +179,11 @@ class Pipeline:
 
     # -- decisions ----------------------------------------------------------------------------------------
     def ego(self) -> EgoState:
-        return self.ego_estimator.state()
+        # Several consumers ask between two sensor messages (mission, controller, log): build it once;
+        # on_imu and on_odometry drop the cached state.
+        if self._ego is None:
+            self._ego = self.ego_estimator.state()
+        return self._ego
 
     def target(self, t: float) -> PlatformEstimate | None:
         return self.platform_estimator.state(t) if self.platform_estimator.initialized else None
@@ -181,7 +191,6 @@ class Pipeline:
     def step(self, t: float) -> MissionStatus:
         """Run the mission logic and replan (at the planner's rate)."""
         ego = self.ego()
-        self.history.add(t, ego.p_WB, ego.q_WB)
         target = self.target(t)
         self.status = self.mission.step(t, ego, target, self.range_m)
         if self.status.changed and self.status.mode is Mode.LAND and self.stats.t_landing_start is None:
