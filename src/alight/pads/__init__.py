@@ -1,1 +1,58 @@
-"""pads"""
+"""Landing-pad designs: marker geometry in the pad frame ``P`` and grayscale textures.
+
+Pad frame ``P``: origin at the pad centre, z up, x along the platform heading, y to the left. A pad is a
+square of side ``size_m`` on the plane z = 0 of P.
+
+Texture convention (every design): the pad seen from above, +x (front) at the image top, +y (left) at the
+image left, not mirrored. An ``n x n`` texture (``n = round(size_m * px_per_m)``) maps the P point
+``(x, y)`` to the pixel ``u = s (size_m/2 - y) - 0.5``, ``v = s (size_m/2 - x) - 0.5`` with
+``s = n / size_m``; ``texture_homography_P_to_px(px_per_m)`` is that map as a 3x3 homography.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from alight.pads._texture import texture_homography, texture_side_px
+from alight.pads.apriltag_pad import APRILTAG_DICTIONARY, AprilTagPad
+from alight.pads.falanga_tag import FalangaTag
+from alight.types import FloatArray
+
+
+@runtime_checkable
+class PadDesign(Protocol):
+    """What the renderer and the detectors need of a pad."""
+
+    @property
+    def size_m(self) -> float:
+        """Side of the pad's square (m)."""
+        ...
+
+    def texture(self, px_per_m: float) -> NDArray[np.uint8]:
+        """Grayscale texture, shape (n, n), ``n = round(size_m * px_per_m)``."""
+        ...
+
+    def texture_homography_P_to_px(self, px_per_m: float) -> FloatArray:
+        """3x3 homography from P-plane points (x, y, 1) in m to texture pixels (u, v, 1)."""
+        ...
+
+
+REGISTRY: dict[str, Callable[..., PadDesign]] = {
+    "falanga": FalangaTag.default,
+    "apriltag": AprilTagPad.default,
+}
+"""Pad designs by name; each factory takes ``size_m`` (default 1.5 m)."""
+
+__all__ = [
+    "APRILTAG_DICTIONARY",
+    "REGISTRY",
+    "AprilTagPad",
+    "FalangaTag",
+    "PadDesign",
+    "texture_homography",
+    "texture_side_px",
+]

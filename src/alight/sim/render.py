@@ -1,0 +1,622 @@
+"""Camera-image renderer for the planar world: the ground (z = 0) and the platform deck with the pad on
+top (the plane z = p_WP[2]).
+
+How a frame is made (all per-pixel work in numba kernels or OpenCV, nothing per pixel in Python):
+
+1. Once per camera (cached per camera object), every pixel's ray in C is unprojected through the camera
+   model (any :class:`alight.cameras.CameraModel`, so lens distortion, or a fisheye model, is exact) and
+   stored as float32 planes; a second set holds the rays of a half-resolution grid.
+2. Per frame the ray-plane intersection with texture lookup is a homography on the ray,
+   ``(u, v, w) = M d_C`` with ``M = T N R`` (texture scale/offset T, plane intersection N, rotation R into
+   the plane's frame). A vectorised numba kernel evaluates it for every pixel into float32 maps, and
+   ``cv2.remap`` samples the texture bilinearly.
+3. The ground is rendered at half resolution and upsampled with ``cv2.pyrUp`` (it is a background of
+   noise whose fine detail nothing depends on; this halves the frame time), with nearest-texel lookup
+   unless the texture is magnified more than 2x. Rays that do not hit the ground in front show the sky;
+   hits farther than ``max_range_m`` show a uniform haze (the texture mean). One mip level serves the
+   whole frame, so ground much farther than the point on the optical axis aliases (towards a horizon).
+4. The deck is rendered at full resolution over its bounding box only (found by projecting its outline),
+   and copied over the ground where the ray hits the deck rectangle (a hard edge against the ground): the
+   pad is never blurred by the half-resolution ground and its edges are where the camera model puts
+   them (to 0.3 px in the tests). When the deck fills the view the ground is skipped.
+5. Both textures are mip-mapped (area-averaged halvings); each frame picks the level whose texel is just
+   below the pixel footprint at the pad (and at the ground point on the optical axis).
+6. Optional effects, in the order a camera produces them: vignetting, motion blur from the body rates
+   over the exposure time, exposure gain and gamma, Gaussian sensor noise.
+
+Conventions: world W is ENU z-up; the pad frame P is at ``p_WP`` rotated by ``yaw`` about z; camera C is
+OpenCV's. A camera below the pad plane does not see the deck (the platform's body is not modelled); a
+camera at or below the ground renders as if 1 mm above it.
+
+Speed (``benchmarks/bench_render.py``, one core, noise off, 752 x 480): about 0.5 ms with the pad small
+in view, 1.2-1.4 ms with the pad filling a large part of it. A renderer reuses its buffers: one
+instance per thread.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import weakref
+from dataclasses import dataclass, field
+
+import cv2
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from alight.cameras import CameraModel, CameraMount
+from alight.pads import PadDesign
+from alight.sim.textures import DeckTexture, GroundTexture, make_deck_texture
+from alight.types import FloatArray
+
+# fastmath without nnan / ninf: invalid rays and rays parallel to a plane must still compare false
+_FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+_MIN_HEIGHT_M = 1e-3
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """Scenario options of the renderer. All effects are off by default except a mild sensor noise."""
+
+    noise_sigma_dn: float = 2.0
+    """Standard deviation of additive Gaussian sensor noise (DN, 8-bit)."""
+    exposure_time_s: float = 0.0
+    """Exposure time for motion blur from the body rates (s); 0 disables the blur."""
+    exposure_gain: float = 1.0
+    """Brightness gain (1 = unchanged), applied before the gamma."""
+    gamma: float = 1.0
+    """Gamma exponent on normalised intensity (1 = unchanged; > 1 darkens mid-tones)."""
+    vignetting: float = 0.0
+    """Brightness lost at the image corners, in [0, 1) (0 = none); falls off as cos^4 of the ray angle,
+    scaled so the corner loses this fraction."""
+    shadow_polygon_P: tuple[tuple[float, float], ...] | None = None
+    """A hard shadow over this polygon in the pad frame (m), e.g. of the vehicle or a mast."""
+    shadow_gain: float = 0.45
+    """Brightness factor inside the shadow."""
+    sky_dn: int = 215
+    """Intensity of the sky (DN)."""
+    max_range_m: float = 300.0
+    """Ground farther than this (along the ray) is drawn as uniform haze (m)."""
+    deck_length_m: float = 2.0
+    """Deck extent along the platform heading (m)."""
+    deck_width_m: float = 1.7
+    """Deck extent across the platform (m)."""
+    deck_gray_dn: float = 60.0
+    """Deck brightness (DN)."""
+    pad_px_per_m: float = 1024.0
+    """Resolution of the finest deck texture level (px/m): 1 mm, enough for a camera 0.4 m above."""
+
+    def __post_init__(self) -> None:
+        if self.shadow_polygon_P is not None:  # a hashable tuple, whatever array-like was passed
+            poly = np.asarray(self.shadow_polygon_P, dtype=np.float64)
+            if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not np.isfinite(poly).all():
+                raise ValueError(f"shadow_polygon_P must be a finite (K >= 3, 2) array, got {poly.shape}")
+            object.__setattr__(self, "shadow_polygon_P", tuple((float(x), float(y)) for x, y in poly))
+        checks = {
+            "noise_sigma_dn": self.noise_sigma_dn >= 0,
+            "exposure_time_s": self.exposure_time_s >= 0,
+            "exposure_gain": self.exposure_gain > 0,
+            "gamma": self.gamma > 0,
+            "vignetting": 0 <= self.vignetting < 1,
+            "shadow_gain": 0 <= self.shadow_gain <= 1,
+            "sky_dn": 0 <= self.sky_dn <= 255,
+            "max_range_m": self.max_range_m > 0,
+            "deck_gray_dn": 0 <= self.deck_gray_dn <= 255,
+            "pad_px_per_m": self.pad_px_per_m > 0,
+        }
+        for name, ok in checks.items():
+            if not ok or not math.isfinite(float(getattr(self, name))):
+                raise ValueError(f"RenderOptions.{name} out of range: {getattr(self, name)}")
+
+
+# --------------------------------------------------------------------------------------------------
+# Kernels
+# --------------------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", boundscheck=False)
+def _ground_maps(rx, ry, rz, M, min_den, n, mapx, mapy):  # type: ignore[no-untyped-def]
+    """Texture coordinates of the ground hit of each ray (flat float32 arrays), wrapped into the tile
+    ``[0, n)``. ``M``'s last row gives ``den = d_Wz``; the ray hits the ground in front iff ``den < 0``.
+    Rays with ``-min_den <= den < 0`` hit beyond the haze range, rays with ``den >= 0`` see the sky, and
+    invalid rays (all zero) read the black rows of the extended texture."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = M[0], M[1], M[2], M[3], M[4], M[5], M[6], M[7], M[8]
+    fn = np.float32(n)
+    inv_n = np.float32(1.0 / n)
+    one = np.float32(1.0)
+    sky_v = fn + np.float32(1.5)
+    haze_v = fn + np.float32(3.5)
+    black_v = fn + np.float32(5.5)
+    zero = np.float32(0.0)
+    for i in range(rx.shape[0]):
+        x = rx[i]
+        y = ry[i]
+        z = rz[i]
+        den = m20 * x + m21 * y + m22 * z
+        iw = one / den
+        tu = (m00 * x + m01 * y + m02 * z) * iw
+        tv = (m10 * x + m11 * y + m12 * z) * iw
+        tu = tu - np.floor(tu * inv_n) * fn
+        tv = tv - np.floor(tv * inv_n) * fn
+        far = den >= -min_den
+        invalid = (x == zero) & (y == zero) & (z == zero)
+        special_v = black_v if invalid else (sky_v if den >= zero else haze_v)
+        use_special = far | invalid
+        mapx[i] = one if use_special else tu
+        mapy[i] = special_v if use_special else tv
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", boundscheck=False)
+def _deck_maps_row(rx, ry, rz, M, umax, vmax, mapx, mapy, mask):  # type: ignore[no-untyped-def]
+    """One image row of deck texture coordinates and the hit mask (1 where the ray hits the deck
+    rectangle in front of the camera: ``den = d_Pz < 0`` and inside the texture's extent). Branch-free,
+    so LLVM vectorises it."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = M[0], M[1], M[2], M[3], M[4], M[5], M[6], M[7], M[8]
+    lo = np.float32(-0.5)
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    for i in range(rx.shape[0]):
+        x = rx[i]
+        y = ry[i]
+        z = rz[i]
+        den = m20 * x + m21 * y + m22 * z
+        iw = one / den
+        tu = (m00 * x + m01 * y + m02 * z) * iw
+        tv = (m10 * x + m11 * y + m12 * z) * iw
+        hit = (den < zero) & (tu >= lo) & (tv >= lo) & (tu <= umax) & (tv <= vmax)
+        mapx[i] = tu if hit else lo
+        mapy[i] = tv if hit else lo
+        mask[i] = np.uint8(hit)
+
+
+@numba.njit(cache=True, boundscheck=False)
+def _deck_maps(rx, ry, rz, M, umax, vmax, v0, v1, u0, u1, mapx, mapy, mask):  # type: ignore[no-untyped-def]
+    """Deck maps and mask over the image rows ``v0:v1`` and columns ``u0:u1`` (outputs of that size)."""
+    for v in range(v0, v1):
+        r = v - v0
+        _deck_maps_row(rx[v, u0:u1], ry[v, u0:u1], rz[v, u0:u1], M, umax, vmax, mapx[r], mapy[r], mask[r])
+
+
+# --------------------------------------------------------------------------------------------------
+# Texture preparation (cached: campaigns build many renderers with the same pad)
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class _Level:
+    image: NDArray[np.uint8]
+    H: FloatArray  # P or W plane point (x, y, 1) -> pixel (u, v, 1)
+    texel_m: float  # size of one texel (m)
+
+
+def _deck_pyramid(*args: object) -> tuple[_Level, ...]:
+    """Deck texture levels, cached when the pad is hashable (the frozen dataclasses of ``alight.pads``)."""
+    try:
+        hash(args)
+    except TypeError:
+        return _build_deck_pyramid(*args)  # type: ignore[arg-type]
+    return _cached_deck_pyramid(*args)  # type: ignore[arg-type]
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_deck_pyramid(*args: object) -> tuple[_Level, ...]:
+    return _build_deck_pyramid(*args)  # type: ignore[arg-type]
+
+
+def _build_deck_pyramid(
+    pad: PadDesign,
+    px_per_m: float,
+    length_m: float,
+    width_m: float,
+    gray: float,
+    shadow: tuple[tuple[float, float], ...] | None,
+    shadow_gain: float,
+) -> tuple[_Level, ...]:
+    poly = None if shadow is None else np.asarray(shadow, dtype=np.float64)
+    deck: DeckTexture = make_deck_texture(
+        pad,
+        px_per_m,
+        length_m=length_m,
+        width_m=width_m,
+        deck_gray=gray,
+        rng=np.random.default_rng(0),  # the deck's stains are part of the platform, not of a scenario
+        shadow_polygon_P=poly,
+        shadow_gain=shadow_gain,
+    )
+    levels = []
+    img = deck.image
+    L, W = deck.length_m, deck.width_m
+    while True:
+        rows, cols = img.shape
+        su, sv = cols / W, rows / L
+        H = np.array([[0.0, -su, su * W / 2 - 0.5], [-sv, 0.0, sv * L / 2 - 0.5], [0.0, 0.0, 1.0]])
+        levels.append(_Level(img, H, 1.0 / min(su, sv)))
+        if min(rows, cols) < 16:
+            break
+        img = cv2.resize(img, ((cols + 1) // 2, (rows + 1) // 2), interpolation=cv2.INTER_AREA)
+    for lev in levels:
+        lev.image.setflags(write=False)
+    return tuple(levels)
+
+
+def _ground_pyramid(ground: GroundTexture, sky_dn: int) -> tuple[tuple[_Level, ...], int]:
+    """Levels of the tile, each extended by a wrap-around row and column (so bilinear lookups at the
+    tile's last texel read the first), and 6 constant rows: sky (n+1, n+2), haze (n+3, n+4) and black
+    (n+5, n+6). Returns the levels and the haze intensity."""
+    tile = ground.image
+    haze = int(round(float(tile.mean())))
+    levels = []
+    m = ground.m_per_px
+    while True:
+        n = tile.shape[0]
+        ext = np.empty((n + 7, n + 1), np.uint8)
+        ext[:n, :n] = tile
+        ext[n, :n] = tile[0]
+        ext[: n + 1, n] = ext[: n + 1, 0]
+        ext[n + 1 : n + 3] = sky_dn
+        ext[n + 3 : n + 5] = haze
+        ext[n + 5 :] = 0
+        ext.setflags(write=False)
+        levels.append(_Level(ext, _ground_H(m, m / ground.m_per_px), m))
+        if n % 2 or n < 16:
+            break
+        # a 2x2 box average of a periodic tile is periodic: the halving stays tileable
+        tile = cv2.resize(tile, (n // 2, n // 2), interpolation=cv2.INTER_AREA)
+        m *= 2.0
+    return tuple(levels), haze
+
+
+def _ground_H(m_per_px: float, factor: float) -> FloatArray:
+    """Ground point (x_W, y_W, 1) -> texel (u, v, 1) of a level ``factor`` times coarser than the tile
+    (``GroundTexture.texel_of_W`` at level 0). A coarse texel averages ``factor`` fine ones, so its centre
+    sits ``(factor - 1) / 2`` fine texels past the first one's."""
+    s = 1.0 / m_per_px
+    c = -0.5 + 0.5 / factor
+    return np.array([[s, 0.0, c], [0.0, -s, c], [0.0, 0.0, 1.0]])
+
+
+# --------------------------------------------------------------------------------------------------
+# Renderer
+# --------------------------------------------------------------------------------------------------
+
+
+def _planes(rays: FloatArray, shape: tuple[int, int]) -> tuple[NDArray[np.float32], ...]:
+    """Split (N, 3) rays into three contiguous float32 planes of ``shape``; invalid (NaN) rays become 0."""
+    r = np.where(np.isfinite(rays).all(axis=1, keepdims=True), rays, 0.0).astype(np.float32)
+    return tuple(np.ascontiguousarray(r[:, k].reshape(shape)) for k in range(3))
+
+
+_RAY_CACHE: weakref.WeakKeyDictionary[object, tuple] = weakref.WeakKeyDictionary()  # type: ignore[type-arg]
+
+
+def _camera_rays(camera: CameraModel, pyrup: bool) -> tuple:  # type: ignore[type-arg]
+    """Unit rays of every pixel (three (H, W) float32 planes), of the half-resolution grid (three flat
+    planes) and the angle between neighbouring pixels at the image centre (rad). Cached per camera
+    object (the models are immutable); unprojecting 360 k pixels costs ~0.1 s."""
+    try:
+        return _RAY_CACHE[camera][pyrup]  # type: ignore[no-any-return]
+    except (KeyError, TypeError):
+        pass
+    W, H = int(camera.width), int(camera.height)
+    v, u = np.mgrid[0:H, 0:W]
+    uv = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
+    rx, ry, rz = _planes(camera.unproject(uv), (H, W))
+    H2, W2 = (H + 1) // 2, (W + 1) // 2
+    v2, u2 = np.mgrid[0:H2, 0:W2]
+    # upsampled with cv2.pyrUp when the size is even (src pixel i at dst 2i, and faster than resize),
+    # else with cv2.resize (src pixel i at dst (i + 0.5) W / W2 - 0.5)
+    if pyrup:
+        uv2 = np.stack([2.0 * u2.ravel(), 2.0 * v2.ravel()], axis=1).astype(np.float64)
+    else:
+        uv2 = np.stack([(u2.ravel() + 0.5) * W / W2 - 0.5, (v2.ravel() + 0.5) * H / H2 - 0.5], axis=1)
+    hx, hy, hz = (a.ravel() for a in _planes(camera.unproject(uv2), (H2, W2)))
+    c = np.array([[(W - 1) / 2, (H - 1) / 2], [(W - 1) / 2 + 1, (H - 1) / 2]])
+    rc = camera.unproject(c)
+    pixel_angle = float(np.arccos(np.clip(rc[0] @ rc[1], -1.0, 1.0)))
+    if not (pixel_angle > 0):
+        raise ValueError("the camera has no valid ray at the image centre")
+    for a in (rx, ry, rz, hx, hy, hz):
+        a.setflags(write=False)
+    out = (rx, ry, rz, hx, hy, hz, pixel_angle)
+    try:
+        _RAY_CACHE.setdefault(camera, {})[pyrup] = out
+    except TypeError:
+        pass  # a camera object that cannot be weakly referenced: no caching
+    return out
+
+
+@dataclass
+class _Buffers:
+    gmx: NDArray[np.float32]
+    gmy: NDArray[np.float32]
+    half: NDArray[np.uint8]
+    pmx: NDArray[np.float32] = field(repr=False)
+    pmy: NDArray[np.float32] = field(repr=False)
+    mask: NDArray[np.uint8] = field(repr=False)
+    tmp: NDArray[np.uint8] = field(repr=False)
+
+
+class Renderer:
+    """Renders grayscale images of the ground and the platform's pad through a camera model.
+
+    ``camera``: any :class:`~alight.cameras.CameraModel`; ``ground_texture``: the tileable ground;
+    ``pad``: a :class:`~alight.pads.PadDesign`; ``options``: :class:`RenderOptions`; ``rng``: the
+    generator of the sensor noise (needed when ``options.noise_sigma_dn > 0``); ``R_BC``: camera mount
+    rotation, used only to turn body rates into image motion blur (default: the downward mount).
+    """
+
+    def __init__(
+        self,
+        camera: CameraModel,
+        ground_texture: GroundTexture,
+        pad: PadDesign,
+        options: RenderOptions | None = None,
+        rng: np.random.Generator | None = None,
+        *,
+        R_BC: FloatArray | None = None,
+    ) -> None:
+        self.camera = camera
+        self.ground = ground_texture
+        self.pad = pad
+        self.options = options if options is not None else RenderOptions()
+        opt = self.options
+        if opt.noise_sigma_dn > 0 and rng is None:
+            raise ValueError("a numpy Generator (rng) is needed for the sensor noise")
+        self._rng = rng
+        self._R_BC = np.asarray(CameraMount.downward().R_BC if R_BC is None else R_BC, dtype=np.float64)
+        W, H = int(camera.width), int(camera.height)
+        self.width, self.height = W, H
+
+        # 1. per-pixel rays, full and half resolution (cached per camera object)
+        self._pyrup = H % 2 == 0 and W % 2 == 0
+        rays = _camera_rays(camera, self._pyrup)
+        self._rx, self._ry, self._rz, self._hx, self._hy, self._hz, self._pixel_angle = rays
+        H2, W2 = self._half_shape = ((H + 1) // 2, (W + 1) // 2)
+
+        # 2. textures
+        self._glevels, self._haze = _ground_pyramid(ground_texture, int(opt.sky_dn))
+        self._dlevels = _deck_pyramid(
+            pad,
+            float(opt.pad_px_per_m),
+            float(opt.deck_length_m),
+            float(opt.deck_width_m),
+            float(opt.deck_gray_dn),
+            opt.shadow_polygon_P,
+            float(opt.shadow_gain),
+        )
+        L0 = self._dlevels[0]
+        rows0, cols0 = L0.image.shape
+        Hinv = np.linalg.inv(L0.H)
+        edge = np.array([[-0.5, -0.5], [cols0 - 0.5, -0.5], [cols0 - 0.5, rows0 - 0.5], [-0.5, rows0 - 0.5]])
+        q = np.c_[edge, np.ones(4)] @ Hinv.T
+        corners = q[:, :2] / q[:, 2:]
+        self.deck_corners_P = np.c_[corners, np.zeros(4)]
+        """Deck rectangle corners in P (m), shape (4, 3)."""
+        t = np.linspace(0.0, 1.0, 17)[:-1, None]
+        self._outline_P = np.concatenate(
+            [np.c_[(1 - t) * corners[k] + t * corners[(k + 1) % 4], np.zeros(len(t))] for k in range(4)]
+        )
+
+        # 3. effects
+        lut = np.arange(256, dtype=np.float64) / 255.0
+        lut = 255.0 * np.clip(lut * opt.exposure_gain, 0.0, 1.0) ** opt.gamma
+        self._lut = np.clip(np.rint(lut), 0, 255).astype(np.uint8)
+        self._lut_identity = bool(np.all(self._lut == np.arange(256)))
+        self._vignette: NDArray[np.uint8] | None = None
+        if opt.vignetting > 0:
+            # cos^4 of the angle to the optical axis (unit rays; 0 past 90 deg and for pixels without a ray)
+            cos4 = np.clip(self._rz.astype(np.float64), 0.0, 1.0) ** 4
+            lo = float(cos4.min())
+            gain = 1.0 - opt.vignetting * (1.0 - cos4) / max(1.0 - lo, 1e-9)
+            # as uint8 (gain x 255): a uint8 x uint8 multiply is several times faster than one by float32
+            self._vignette = np.clip(np.rint(255.0 * gain), 0, 255).astype(np.uint8)
+        # sensor noise: one bank of Gaussian samples twice the image size, from which each frame takes a
+        # window at a random offset (drawing 360 k normals per frame would cost 4 ms). Stored as its
+        # positive and negative parts in uint8, so adding it is two saturating uint8 operations, which
+        # equal the saturated sum because only one of the two is non-zero at any pixel.
+        self._noise_pos: NDArray[np.uint8] | None = None
+        self._noise_neg: NDArray[np.uint8] | None = None
+        if opt.noise_sigma_dn > 0 and rng is not None:
+            bank = np.rint(
+                rng.standard_normal((2 * H, 2 * W), dtype=np.float32) * np.float32(opt.noise_sigma_dn)
+            )
+            self._noise_pos = np.clip(bank, 0, 255).astype(np.uint8)
+            self._noise_neg = np.clip(-bank, 0, 255).astype(np.uint8)
+
+        self._buf = _Buffers(
+            gmx=np.empty(H2 * W2, np.float32),
+            gmy=np.empty(H2 * W2, np.float32),
+            half=np.empty((H2, W2), np.uint8),
+            pmx=np.empty(H * W, np.float32),
+            pmy=np.empty(H * W, np.float32),
+            mask=np.empty(H * W, np.uint8),
+            tmp=np.empty(H * W, np.uint8),
+        )
+
+    # ------------------------------------------------------------------------------------------------
+
+    def render(
+        self,
+        p_WC: FloatArray,
+        R_WC: FloatArray,
+        platform_pose: tuple[FloatArray, float],
+        w_WB_B: FloatArray | None = None,
+    ) -> NDArray[np.uint8]:
+        """The camera image, uint8, shape (height, width), a new array on every call.
+
+        ``p_WC`` (3,) camera centre in W (m); ``R_WC`` (3, 3) camera orientation; ``platform_pose`` =
+        ``(p_WP (3,), yaw)``, the pad centre in W (m, its z is the deck height) and the platform heading
+        (rad); ``w_WB_B`` (3,) body rates (rad/s) for the motion blur (ignored when the exposure time is 0).
+        """
+        p_WC = np.asarray(p_WC, dtype=np.float64)
+        R_WC = np.asarray(R_WC, dtype=np.float64)
+        p_WP = np.asarray(platform_pose[0], dtype=np.float64)
+        yaw = float(platform_pose[1])
+        if p_WC.shape != (3,) or R_WC.shape != (3, 3) or p_WP.shape != (3,):
+            raise ValueError("render needs p_WC (3,), R_WC (3, 3) and platform_pose (p_WP (3,), yaw)")
+        if not math.isfinite(float(p_WC.sum() + R_WC.sum() + p_WP.sum())):
+            raise ValueError("render needs a finite camera pose and platform pose")
+        if not math.isfinite(yaw):
+            raise ValueError(f"platform yaw must be finite, got {yaw}")
+        H, W = self.height, self.width
+        out = np.empty((H, W), np.uint8)
+
+        deck = self._deck_maps(p_WC, R_WC, p_WP, yaw)
+        if deck is not None and deck[0] == (0, H, 0, W) and deck[2] == H * W:
+            # the deck fills the image: no ground to draw, remap straight into the output
+            b = self._buf
+            lev = deck[1]
+            mx, my = b.pmx.reshape(H, W), b.pmy.reshape(H, W)
+            cv2.remap(lev.image, mx, my, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_REPLICATE)
+        else:
+            self._draw_ground(p_WC, R_WC, out)
+            if deck is not None:
+                self._composite_deck(out, deck[0], deck[1])
+        return self._effects(out, w_WB_B)
+
+    # ------------------------------------------------------------------------------------------------
+
+    def _level(self, levels: tuple[_Level, ...], footprint_m: float) -> _Level:
+        """The coarsest level whose texel is no larger than the pixel footprint."""
+        k = 0
+        while k + 1 < len(levels) and levels[k + 1].texel_m <= footprint_m:
+            k += 1
+        return levels[k]
+
+    def _draw_ground(self, p_WC: FloatArray, R_WC: FloatArray, out: NDArray[np.uint8]) -> None:
+        opt = self.options
+        h = max(float(p_WC[2]), _MIN_HEIGHT_M)
+        # footprint of a half-resolution pixel where the optical axis meets the ground (or at a grazing
+        # ray when it does not): geometric mean of the along- and across-range sizes
+        dz = min(float(R_WC[2, 2]), -0.05)
+        rng_m = min(h / -dz, opt.max_range_m)
+        foot = rng_m * 2.0 * self._pixel_angle / math.sqrt(-dz)
+        lev = self._level(self._glevels, foot)
+        tile_m = self._glevels[0].texel_m * (self._glevels[0].image.shape[0] - 7)
+        px, py = math.fmod(float(p_WC[0]), tile_m), math.fmod(float(p_WC[1]), tile_m)
+        N = np.array([[-h, 0.0, px], [0.0, -h, py], [0.0, 0.0, 1.0]])
+        M = (lev.H @ N @ R_WC).astype(np.float32).ravel()
+        n = lev.image.shape[1] - 1
+        b = self._buf
+        _ground_maps(self._hx, self._hy, self._hz, M, np.float32(h / opt.max_range_m), n, b.gmx, b.gmy)
+        H2, W2 = self._half_shape
+        # nearest-texel lookup is 3x cheaper and, with the mip level at one to two texels per pixel (or
+        # magnified up to 2x) and pyrUp's Gaussian after it, looks the same; bilinear only below that
+        interp = cv2.INTER_NEAREST if foot >= 0.5 * self._glevels[0].texel_m else cv2.INTER_LINEAR
+        cv2.remap(
+            lev.image,
+            b.gmx.reshape(H2, W2),
+            b.gmy.reshape(H2, W2),
+            interp,
+            dst=b.half,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
+        if self._pyrup:
+            cv2.pyrUp(b.half, dst=out, dstsize=(self.width, self.height))
+        else:
+            cv2.resize(b.half, (self.width, self.height), dst=out, interpolation=cv2.INTER_LINEAR)
+
+    def _deck_maps(
+        self, p_WC: FloatArray, R_WC: FloatArray, p_WP: FloatArray, yaw: float
+    ) -> tuple[tuple[int, int, int, int], _Level, int] | None:
+        """Deck texture maps and hit mask over the deck's bounding box in the image (into the buffers).
+        Returns ``((v0, v1, u0, u1), texture level, number of deck pixels)``, or None when no deck pixel
+        is visible."""
+        h_p = float(p_WC[2] - p_WP[2])
+        if h_p <= _MIN_HEIGHT_M:
+            return None  # at or below the deck plane: the deck's top is not visible
+        c, s = math.cos(yaw), math.sin(yaw)
+        R_WP = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        p_PC = R_WP.T @ (p_WC - p_WP)
+        R_PC = R_WP.T @ R_WC
+        H, W = self.height, self.width
+        # bounding box of the deck's image from its outline (the whole image if part of it is behind
+        # the camera or outside the lens model, where the outline does not bound the image)
+        X_C = (self._outline_P - p_PC) @ R_PC
+        if np.all(X_C[:, 2] <= 0):
+            return None  # the whole deck is behind the camera
+        u0, u1, v0, v1 = 0, W, 0, H
+        if np.all(X_C[:, 2] > 1e-6):
+            uv = self.camera.project(X_C)
+            if np.isfinite(uv).all():
+                u0 = max(int(math.floor(uv[:, 0].min())) - 2, 0)
+                u1 = min(int(math.ceil(uv[:, 0].max())) + 3, W)
+                v0 = max(int(math.floor(uv[:, 1].min())) - 2, 0)
+                v1 = min(int(math.ceil(uv[:, 1].max())) + 3, H)
+        if u1 <= u0 or v1 <= v0:
+            return None
+        # texel no larger than the pixel footprint at the pad centre (geometric mean of the along- and
+        # across-range footprints on the tilted plane)
+        dist = float(np.linalg.norm(p_PC))
+        foot = dist * self._pixel_angle / math.sqrt(max(h_p / max(dist, 1e-9), 0.05))
+        lev = self._level(self._dlevels, foot)
+        N = np.array([[-h_p, 0.0, p_PC[0]], [0.0, -h_p, p_PC[1]], [0.0, 0.0, 1.0]])
+        M = (lev.H @ N @ R_PC).astype(np.float32).ravel()
+        rows, cols = lev.image.shape
+        nr, nc = v1 - v0, u1 - u0
+        b = self._buf
+        mask = b.mask[: nr * nc].reshape(nr, nc)
+        _deck_maps(
+            self._rx, self._ry, self._rz, M, np.float32(cols - 0.5), np.float32(rows - 0.5),
+            v0, v1, u0, u1, b.pmx[: nr * nc].reshape(nr, nc), b.pmy[: nr * nc].reshape(nr, nc), mask,
+        )  # fmt: skip
+        count = int(cv2.countNonZero(mask))
+        return None if count == 0 else ((v0, v1, u0, u1), lev, count)
+
+    def _composite_deck(self, out: NDArray[np.uint8], roi: tuple[int, int, int, int], lev: _Level) -> None:
+        """Sample the deck over ``roi`` with the maps of :meth:`_deck_maps` and copy it where it is hit."""
+        v0, v1, u0, u1 = roi
+        nr, nc = v1 - v0, u1 - u0
+        b = self._buf
+        tmp = b.tmp[: nr * nc].reshape(nr, nc)
+        cv2.remap(
+            lev.image,
+            b.pmx[: nr * nc].reshape(nr, nc),
+            b.pmy[: nr * nc].reshape(nr, nc),
+            cv2.INTER_LINEAR,
+            dst=tmp,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+        cv2.copyTo(tmp, b.mask[: nr * nc].reshape(nr, nc), out[v0:v1, u0:u1])  # in place into the view
+
+    def _effects(self, img: NDArray[np.uint8], w_WB_B: FloatArray | None) -> NDArray[np.uint8]:
+        opt = self.options
+        if self._vignette is not None:
+            img = cv2.multiply(img, self._vignette, scale=1.0 / 255.0)
+        if opt.exposure_time_s > 0 and w_WB_B is not None:
+            w_C = self._R_BC.T @ np.asarray(w_WB_B, dtype=np.float64)
+            k = _motion_blur_kernel(w_C, opt.exposure_time_s, 1.0 / self._pixel_angle)
+            if k is not None:
+                img = cv2.filter2D(img, -1, k, borderType=cv2.BORDER_REPLICATE)
+        if not self._lut_identity:
+            img = cv2.LUT(img, self._lut)
+        if self._noise_pos is not None and self._noise_neg is not None and self._rng is not None:
+            H, W = self.height, self.width
+            oy, ox = (int(a) for a in self._rng.integers(0, (H, W)))
+            cv2.add(img, self._noise_pos[oy : oy + H, ox : ox + W], dst=img)
+            cv2.subtract(img, self._noise_neg[oy : oy + H, ox : ox + W], dst=img)
+        return img
+
+
+def _motion_blur_kernel(w_C: FloatArray, exposure_s: float, f_px: float) -> NDArray[np.float32] | None:
+    """Line kernel of the image motion at the image centre during the exposure: a point fixed in the
+    world moves as ``dX_C/dt = -w_C x X_C``, so at the centre ``du/dt = -f w_y``, ``dv/dt = f w_x``
+    (rotation about the optical axis, which blurs the edges only, is ignored). ``None`` below 0.5 px."""
+    bu = -f_px * float(w_C[1]) * exposure_s
+    bv = f_px * float(w_C[0]) * exposure_s
+    length = math.hypot(bu, bv)
+    if not (length >= 0.5) or not math.isfinite(length):
+        return None
+    half = int(math.ceil(length / 2)) + 1
+    size = 2 * half + 1
+    shift = 4
+    k = np.zeros((size, size), np.float32)
+    p0 = (int(round((half - bu / 2) * (1 << shift))), int(round((half - bv / 2) * (1 << shift))))
+    p1 = (int(round((half + bu / 2) * (1 << shift))), int(round((half + bv / 2) * (1 << shift))))
+    cv2.line(k, p0, p1, 1.0, thickness=1, lineType=cv2.LINE_AA, shift=shift)
+    total = float(k.sum())
+    if total <= 0:
+        return None
+    return k / np.float32(total)
