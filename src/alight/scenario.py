@@ -42,7 +42,7 @@ class PlatformSpec(_Strict):
     heading_rad: float | None = None
     """Initial heading (rad); None draws it from the seed."""
     circle_radius_m: PositiveFloat = 10.0
-    figure8_length_m: PositiveFloat = 30.0
+    figure8_length_m: PositiveFloat = 60.0
     tractor_row_length_m: PositiveFloat = 30.0
     tractor_turn_radius_m: PositiveFloat = 4.0
     random_max_curvature: PositiveFloat = 0.15
@@ -103,10 +103,10 @@ class SearchArea(_Strict):
 
 class MissionSpec(_Strict):
     takeoff_altitude_m: PositiveFloat = 4.0
-    explore_altitude_m: PositiveFloat = 8.0
+    explore_altitude_m: PositiveFloat = 10.0
     track_height_m: PositiveFloat = 2.5
     land_speed_mps: PositiveFloat = 0.4
-    motor_cutoff_range_m: PositiveFloat = 0.04
+    motor_cutoff_range_m: PositiveFloat = 0.03
     lost_timeout_s: PositiveFloat = 3.0
     max_go_arounds: Annotated[int, Field(ge=0)] = 3
     time_budget_s: PositiveFloat | None = None
@@ -115,9 +115,13 @@ class MissionSpec(_Strict):
 class PlannerSpec(_Strict):
     n_candidates: Annotated[int, Field(ge=1, le=10000)] = 20
     horizon_min_s: PositiveFloat = 1.0
-    horizon_max_s: PositiveFloat = 5.0
+    horizon_max_s: PositiveFloat = 3.0
     rate_hz: PositiveFloat = 50.0
     adopt_threshold_m: NonNegFloat = 0.2
+    end_acceleration: Literal["free", "platform"] = "platform"
+    """Final acceleration of each candidate: ``free`` as in paper 000, or the platform's predicted
+    acceleration (a turning platform's centripetal acceleration), which removes the lag of free-end
+    plans behind a platform on a curve."""
 
     @model_validator(mode="after")
     def _ordered(self) -> PlannerSpec:
@@ -130,6 +134,17 @@ class EstimatorSpec(_Strict):
     use_turn_rate: bool = True
     """Unicycle EKF with a turn-rate state (paper 000's model has none: set False for the paper's)."""
     gating: bool = True
+    accel_noise: PositiveFloat = 0.1
+    """Tangential acceleration noise of the platform model (m/s^2/sqrt(Hz))."""
+    heading_noise: PositiveFloat = 0.1
+    """Heading-rate noise of the constant-heading model (rad/s/sqrt(Hz))."""
+    turn_accel_noise: PositiveFloat = 0.1
+    """Turn-rate noise of the turn-rate model (rad/s^2/sqrt(Hz))."""
+
+
+class ControllerSpec(_Strict):
+    position_bandwidth_rad_s: PositiveFloat = 3.0
+    """Natural frequency of the position loop, critically damped (rad/s)."""
 
 
 class ContactSpec(_Strict):
@@ -153,6 +168,7 @@ class Scenario(_Strict):
     mission: MissionSpec = Field(default_factory=MissionSpec)
     planner: PlannerSpec = Field(default_factory=PlannerSpec)
     estimator: EstimatorSpec = Field(default_factory=EstimatorSpec)
+    controller: ControllerSpec = Field(default_factory=ControllerSpec)
     contact: ContactSpec = Field(default_factory=ContactSpec)
     name: str | None = None
     """Free text naming the scenario in reports."""

@@ -30,6 +30,11 @@ class PlatformEstimator(Protocol):
         """True once the estimate has a heading and speed (not just a position)."""
         ...
 
+    @property
+    def has_measurement(self) -> bool:
+        """True once any measurement was accepted: ``state`` then gives at least a position."""
+        ...
+
     def reset(self) -> None:
         """Forget everything."""
         ...

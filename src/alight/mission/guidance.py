@@ -60,6 +60,19 @@ def _rest_to_rest(t0: float, p0: FloatArray, v0: FloatArray, pf: FloatArray, spe
     return MinJerkTrajectory.from_boundary(t0, T, p0, v0, _ZERO3, pf, _ZERO3, _ZERO3)
 
 
+def _platform_jerk(target: PlatformEstimate) -> FloatArray:
+    """Horizontal jerk of a platform turning at a constant rate (m/s^3): its acceleration rotates with
+    the heading, j = w x a with the turn rate w = (v x a)_z / |v|^2. It is the jerk feed-forward of the
+    descent, which the controller turns into body rates; without it the vehicle lags a turning pad."""
+    vx, vy = float(target.v_WP[0]), float(target.v_WP[1])
+    ax, ay = float(target.a_WP[0]), float(target.a_WP[1])
+    speed2 = vx * vx + vy * vy
+    if speed2 < 0.01:
+        return _ZERO3
+    w = (vx * ay - vy * ax) / speed2
+    return np.array([-w * ay, w * ax, 0.0])
+
+
 class Guidance:
     """Turns the mission mode and the estimates into a reference trajectory."""
 
@@ -96,13 +109,24 @@ class Guidance:
         if entered:
             self._enter(t, mode, ego, hover_point_W)
         if mode is Mode.TRACK and target is not None and estimator is not None:
-            self._replan_tracking(t, ego, estimator)
+            self._replan_tracking(t, ego, estimator, target)
 
     def _start_state(self, t: float, ego: EgoState) -> tuple[FloatArray, FloatArray, FloatArray]:
-        # Continue from the reference being flown (a smooth command), unless the vehicle is far from it
-        # (after a mode change or a disturbance): then restart from the estimate.
-        if self._last_ref is not None:
-            p, v, a = self._last_ref.p, self._last_ref.v, self._last_ref.a
+        # Continue from the reference being flown, sampled at t (a smooth command), unless the vehicle is
+        # far from it (after a mode change or a disturbance): then restart from the estimate. Sampling at
+        # t matters: restarting from the last command's reference (up to one control period old) would
+        # set the plan back by v * period at every replanning and make it trail the platform.
+        ref: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        if self._traj is not None:
+            p_t, v_t, a_t, _ = self._traj.sample(t)
+            ref = (p_t, v_t, a_t)
+        elif self._route is not None:
+            p_t, v_t, a_t, _ = self._route.reference(t)
+            ref = (p_t, v_t, a_t)
+        elif self._last_ref is not None:
+            ref = (self._last_ref.p, self._last_ref.v, self._last_ref.a)
+        if ref is not None:
+            p, v, a = ref
             if np.linalg.norm(p - ego.p_WB) < 0.5 and np.linalg.norm(v - ego.v_WB) < 1.0:
                 return p, v, a
             return ego.p_WB, ego.v_WB, a
@@ -110,9 +134,9 @@ class Guidance:
 
     def _enter(self, t: float, mode: Mode, ego: EgoState, hover_point_W: FloatArray) -> None:
         cfg, mcfg = self.config, self.mission_config
+        p0, v0, _ = self._start_state(t, ego)  # from the previous mode's reference
         self._mode, self._mode_t0, self._z_entry = mode, t, float(ego.p_WB[2])
         self._traj, self._route = None, None
-        p0, v0, _ = self._start_state(t, ego)
         if mode is Mode.TAKEOFF:
             self._traj = _rest_to_rest(t, ego.p_WB, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2)
         elif mode is Mode.EXPLORE:
@@ -126,15 +150,32 @@ class Guidance:
             goal = np.array([p0[0], p0[1], mcfg.explore_altitude_m])
             self._traj = _rest_to_rest(t, p0, v0 * 0.0, goal, cfg.cruise_speed_mps / 2)
 
-    def _replan_tracking(self, t: float, ego: EgoState, estimator: PlatformEstimator) -> None:
+    def _track_height(self, t: float, target: PlatformEstimate) -> float:
+        """Height above the pad to track at (m). While the target is unseen the vehicle climbs from the
+        tracking height toward the exploration altitude, widening the camera's footprint around the
+        predicted position before the mission gives up and explores again (the target-lost failsafe)."""
+        mcfg = self.mission_config
+        age = t - target.t_last_measurement
+        grace = 0.5  # s: a few missed frames are normal
+        frac = min(max((age - grace) / max(mcfg.lost_timeout_s - grace, 1e-3), 0.0), 1.0)
+        return mcfg.track_height_m + frac * max(mcfg.explore_altitude_m - mcfg.track_height_m, 0.0)
+
+    def _replan_tracking(
+        self, t: float, ego: EgoState, estimator: PlatformEstimator, target: PlatformEstimate
+    ) -> None:
         pcfg = self.planner.config
         times = sample_end_times(t, pcfg.n_candidates, pcfg.horizon_min_s, pcfg.horizon_max_s)
-        p_pred, v_pred, _, _ = estimator.predict_ahead(times)
-        p_end = p_pred + np.array([0.0, 0.0, self.mission_config.track_height_m])
+        if estimator.initialized:
+            p_pred, v_pred, a_pred, _ = estimator.predict_ahead(times)
+        else:  # only a position so far: go there and look
+            p_pred = np.repeat(target.p_WP[None, :], times.size, axis=0)
+            v_pred = np.zeros_like(p_pred)
+            a_pred = np.zeros_like(p_pred)
+        p_end = p_pred + np.array([0.0, 0.0, self._track_height(t, target)])
         p0, v0, a0 = self._start_state(t, ego)
         floor_z = float(np.max(p_pred[:, 2])) + 0.5 * self.mission_config.track_height_m
         floor_z = min(floor_z, float(p0[2]) - 0.05, float(np.min(p_end[:, 2])) - 0.05)
-        result = self.planner.plan(t, p0, v0, a0, times, p_end, v_pred, floor_z=floor_z)
+        result = self.planner.plan(t, p0, v0, a0, times, p_end, v_pred, floor_z=floor_z, a_end=a_pred)
         if result.trajectory is not None:
             if result.trajectory is not self._traj:
                 self.plans_adopted += 1
@@ -158,7 +199,7 @@ class Guidance:
             p = np.array([target.p_WP[0], target.p_WP[1], z])
             v = np.array([target.v_WP[0], target.v_WP[1], vz])
             a = np.array([target.a_WP[0], target.a_WP[1], 0.0])
-            ref = Reference(t, p, v, a, _ZERO3, cfg.yaw, 0.0)
+            ref = Reference(t, p, v, a, _platform_jerk(target), cfg.yaw, 0.0)
         elif self._route is not None and mode is Mode.EXPLORE:
             p, v, a, j = self._route.reference(t)
             ref = Reference(t, p, v, a, j, cfg.yaw, 0.0)

@@ -122,6 +122,7 @@ class Pipeline:
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
+        self._ranges: list[float | None] = []
         self.last_reference: Reference | None = None
         self.last_measurement: PlatformMeasurement | None = None
         self._ego: EgoState | None = None
@@ -142,7 +143,17 @@ class Pipeline:
         self.ego_estimator.update_odometry(t, p_WB, q_WB, v_WB)
 
     def on_range(self, t: float, range_m: float | None) -> None:
-        self.range_m = range_m if range_m is not None and math.isfinite(range_m) else None
+        """A range-finder reading (m, from the landing-gear feet); None or non-finite when invalid.
+
+        The mission sees the largest of the last three readings, so the motor cut-off needs three
+        readings in a row below its threshold (one noisy low reading at 5 cm would otherwise drop the
+        vehicle from a height where the fall exceeds the gear's limits)."""
+        value = range_m if range_m is not None and math.isfinite(range_m) else None
+        self._ranges.append(value)
+        if len(self._ranges) > 3:
+            self._ranges.pop(0)
+        valid = [r for r in self._ranges if r is not None]
+        self.range_m = max(valid) if len(valid) == len(self._ranges) else None
 
     def on_image(self, t_capture: float, image: np.ndarray) -> list[Observation]:
         """Run the detector on an image taken at ``t_capture`` and use what it finds."""
@@ -186,7 +197,9 @@ class Pipeline:
         return self._ego
 
     def target(self, t: float) -> PlatformEstimate | None:
-        return self.platform_estimator.state(t) if self.platform_estimator.initialized else None
+        # Before the estimator has a heading and speed it still knows where the platform was seen: the
+        # mission tracks that (a brief sighting at the edge of the image must not be thrown away).
+        return self.platform_estimator.state(t) if self.platform_estimator.has_measurement else None
 
     def step(self, t: float) -> MissionStatus:
         """Run the mission logic and replan (at the planner's rate)."""

@@ -19,7 +19,7 @@ import numpy as np
 
 from alight.airframe import Airframe
 from alight.cameras.pinhole import CameraMount
-from alight.control.high_level import HighLevelController
+from alight.control.high_level import HighLevelController, HighLevelGains
 from alight.control.rate import RateControllerGains
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
@@ -28,6 +28,21 @@ from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
 from alight.perception.geolocation import DirectGeolocator
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
+from alight.planning.min_jerk import EndConstraint
+
+
+# The ego EKF's noise model: the data sheet of the vehicle's IMU and the VIO's reported accuracy. These
+# are the numbers the simulated sensors use by default (sim/sensors.py), as a real integrator would copy
+# them from the IMU data sheet and the VIO's calibration.
+_EGO_EKF_CONFIG = EgoEkfConfig(
+    accel_noise_density=3.0e-3,
+    gyro_noise_density=3.0e-4,
+    accel_bias_random_walk=5.0e-4,
+    gyro_bias_random_walk=2.0e-5,
+    odometry_position_std=0.01,
+    odometry_attitude_std=0.005,
+    odometry_velocity_std=0.02,
+)
 
 
 @dataclass
@@ -64,6 +79,7 @@ def _flight_core(s: object, airframe: Airframe, fov_rad: float) -> tuple[Mission
             horizon_min_s=p.horizon_min_s,
             horizon_max_s=p.horizon_max_s,
             adopt_threshold_m=p.adopt_threshold_m,
+            end_constraint=EndConstraint.POS_VEL_ACC if p.end_acceleration == "platform" else EndConstraint.POS_VEL,
         )
     )
     area = sc.search_area  # type: ignore[attr-defined]
@@ -72,8 +88,9 @@ def _flight_core(s: object, airframe: Airframe, fov_rad: float) -> tuple[Mission
         planner,
         GuidanceConfig(search_area=(area.x_min, area.x_max, area.y_min, area.y_max), camera_fov_rad=fov_rad),
     )
-    controller = HighLevelController(airframe)
-    ego = EgoEkf(EgoEkfConfig())
+    gains = HighLevelGains.from_bandwidth(sc.controller.position_bandwidth_rad_s)  # type: ignore[attr-defined]
+    controller = HighLevelController(airframe, gains)
+    ego = EgoEkf(_EGO_EKF_CONFIG)
     return mission, guidance, controller, ego
 
 
@@ -83,7 +100,15 @@ def build_groundtruth(s: object, airframe: Airframe, rng: np.random.Generator) -
     mission, guidance, controller, ego = _flight_core(s, airframe, fov)
     mount = CameraMount.downward()
     est = s.estimator  # type: ignore[attr-defined]
-    platform_estimator = PlatformEkf(PlatformEkfConfig(use_turn_rate=est.use_turn_rate, gating=est.gating))
+    platform_estimator = PlatformEkf(
+        PlatformEkfConfig(
+            use_turn_rate=est.use_turn_rate,
+            gating=est.gating,
+            accel_noise=est.accel_noise,
+            heading_noise=est.heading_noise,
+            turn_accel_noise=est.turn_accel_noise,
+        )
+    )
     pipeline = Pipeline(
         ego_estimator=ego,
         geolocator=DirectGeolocator(mount),

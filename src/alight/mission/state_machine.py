@@ -31,7 +31,7 @@ class MissionConfig:
 
     takeoff_altitude_m: float = 4.0
     """Hover height reached after take-off, above the take-off point (m)."""
-    explore_altitude_m: float = 8.0
+    explore_altitude_m: float = 10.0
     """Altitude of the coverage pattern (m)."""
     track_height_m: float = 2.5
     """Height above the pad while tracking, before the descent (m)."""
@@ -57,7 +57,7 @@ class MissionConfig:
     """The descent is abandoned when the horizontal offset to the pad exceeds this (m) ..."""
     land_abort_min_height_m: float = 0.4
     """... while still higher than this above the pad (below it, committing is safer) (m)."""
-    motor_cutoff_range_m: float = 0.04
+    motor_cutoff_range_m: float = 0.03
     """The motors stop when the range finder (from the landing-gear feet) reads below this (m)."""
     max_go_arounds: int = 3
     """After this many go-arounds the mission aborts."""
