@@ -103,13 +103,16 @@ class SearchArea(_Strict):
 
 class MissionSpec(_Strict):
     takeoff_altitude_m: PositiveFloat = 4.0
-    explore_altitude_m: PositiveFloat = 10.0
+    explore_altitude_m: PositiveFloat = 12.0
     track_height_m: PositiveFloat = 2.5
     land_speed_mps: PositiveFloat = 0.4
     motor_cutoff_range_m: PositiveFloat = 0.03
     lost_timeout_s: PositiveFloat = 3.0
     max_go_arounds: Annotated[int, Field(ge=0)] = 3
     time_budget_s: PositiveFloat | None = None
+    search_pattern: Literal["spiral", "lawnmower"] = "spiral"
+    """Coverage of the search area: an outward square spiral from the take-off point, or paper 000's
+    generic waypoint coverage as a lawnmower from the nearest corner."""
 
 
 class PlannerSpec(_Strict):

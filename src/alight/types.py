@@ -31,6 +31,16 @@ _ZERO3.setflags(write=False)
 
 
 def _frozen(a: object, shape: tuple[int, ...], name: str) -> FloatArray:
+    # An array that is already read-only, float64, owns its data and has the right shape cannot change
+    # under us (messages pass such arrays on to one another): share it instead of copying.
+    if (
+        type(a) is np.ndarray
+        and a.dtype == np.float64
+        and a.shape == shape
+        and not a.flags.writeable
+        and a.flags.owndata
+    ):
+        return a
     arr = np.array(a, dtype=np.float64)  # a copy, so the caller keeps ownership of its buffer
     if arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")

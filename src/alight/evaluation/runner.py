@@ -153,13 +153,11 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
     zero3 = np.zeros(3)
 
     n_sub = round(TICK_DT / PHYSICS_DT)
-    every = {
-        "odometry": round(1.0 / (40.0 * TICK_DT)),
-        "range": round(1.0 / (100.0 * TICK_DT)),
-        "control": round(1.0 / (100.0 * TICK_DT)),
-        "mission": max(1, round(1.0 / (s.planner.rate_hz * TICK_DT))),
-        "log": round(1.0 / (50.0 * TICK_DT)),
-    }
+    every_odometry = round(1.0 / (40.0 * TICK_DT))
+    every_range = round(1.0 / (100.0 * TICK_DT))
+    every_control = round(1.0 / (100.0 * TICK_DT))
+    every_mission = max(1, round(1.0 / (s.planner.rate_hz * TICK_DT)))
+    every_log = round(1.0 / (50.0 * TICK_DT))
     perception_period = 1.0 / pc.rate_hz
     next_capture = 0.0
     pending: deque[tuple[float, float, list]] = deque()  # (delivery time, capture time, observations)
@@ -174,32 +172,38 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
     airborne = False
     t_abort: float | None = None
     outcome: Outcome | None = None
-    a_prev_v = x[SL_V].copy()
     n_ticks = int(round(s.duration_s / TICK_DT))
+    # The platform's path does not depend on the flight: its states at every tick, computed at once.
+    truths = platform.states(np.arange(n_ticks + 1) * TICK_DT)
+    truth_p, truth_v = truths.p_WP, truths.v_WP
+    windless = isinstance(wind, NoWind)
+    f_wind = v_air = zero3
+    gear = airframe.gear_height
+    low_z = s.platform.pad_height_m + 0.01 + gear
     mode = Mode.IDLE
     pad = s.platform.pad_size_m
 
     k = 0
     t = 0.0
     for k in range(1, n_ticks + 1):
-        f_wind = wind.force_W(t, x[SL_P], x[SL_V])
-        v_air = wind.air_velocity_W(t)
+        if not windless:
+            f_wind = wind.force_W(t, x[SL_P], x[SL_V])
+            v_air = wind.air_velocity_W(t)
         v_before = x[SL_V].copy()
         x = advance(
             x, thrust_N, w_cmd, motors_on, f_wind, v_air, sim_params, ll_params, PHYSICS_DT, n_sub,
-            support_z, support_v, airframe.gear_height, supported,
+            support_z, support_v, gear, supported,
         )
         t = k * TICK_DT
         p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]
-        a_WB = (v_WB - v_before) / TICK_DT
-        a_prev_v = v_WB
+        a_WB = (v_WB - v_before) * (1.0 / TICK_DT)  # mean acceleration over the tick, what an IMU sees
 
-        if not airborne and p_WB[2] - airframe.gear_height > 0.05:
+        if not airborne and p_WB[2] - gear > 0.05:
             airborne, supported = True, False
         truth = None
-        if airborne and contact is None and p_WB[2] - airframe.gear_height <= s.platform.pad_height_m + 0.01:
-            truth = platform.state(t)
-            contact = judge_contact(p_WB, v_WB, quat_to_rotmat(q_WB), truth, pad, airframe.gear_height, limits)
+        if airborne and contact is None and p_WB[2] <= low_z:
+            truth = truths.at(k)
+            contact = judge_contact(p_WB, v_WB, quat_to_rotmat(q_WB), truth, pad, gear, limits)
             if contact is not None:
                 t_contact = t
                 if contact.outcome is Outcome.LANDED:
@@ -207,7 +211,7 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
                 else:
                     break
         if supported and contact is not None:
-            truth = truth or platform.state(t)
+            truth = truth or truths.at(k)
             support_v = truth.v_WP.copy()
             support_z = float(truth.p_WP[2])
             motors_on = False
@@ -217,18 +221,17 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
         # -- sensors into the pipeline ------------------------------------------------------------------
         f_B, g_B = imu.measure(a_WB, q_WB, w_WB_B)
         pipeline.on_imu(t, f_B, g_B)
-        if k % every["odometry"] == 0:
+        if k % every_odometry == 0:
             odo = odometry.measure(t, p_WB, v_WB, q_WB, w_WB_B)
             pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB)
         if not pipeline.ego_estimator.initialized:
             continue
-        if k % every["range"] == 0:
-            truth = truth or platform.state(t)
+        if k % every_range == 0:
+            truth = truth or truths.at(k)
             r = rangefinder.measure(p_WB, q_WB, truth, pad)
             pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
         if t + 1e-9 >= next_capture:
-            truth = truth or platform.state(t)
-            obs = truth_perception.observe(t, p_WB, quat_to_rotmat(q_WB), truth.p_WP)
+            obs = truth_perception.observe(t, p_WB, quat_to_rotmat(q_WB), truth_p[k])
             pending.append((t + pc.latency_s, t, obs))
             next_capture += perception_period
         while pending and pending[0][0] <= t + 1e-9:
@@ -238,11 +241,11 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
                     log.add_detection(m.t, m.p_WP)
 
         # -- decisions ----------------------------------------------------------------------------------
-        if k % every["mission"] == 0:
+        if k % every_mission == 0:
             mode = pipeline.step(t).mode
             if mode is Mode.ABORT and t_abort is None:
                 t_abort = t
-        if k % every["control"] == 0:
+        if k % every_control == 0:
             cmd = pipeline.command(t)
             thrust_N, w_cmd, motors_on = cmd.thrust_N, cmd.w_WB_B_cmd, not cmd.motors_off
             if contact is not None:
@@ -251,8 +254,7 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
             outcome = Outcome.ABORTED
             break
 
-        if log is not None and k % every["log"] == 0:
-            truth = truth or platform.state(t)
+        if log is not None and k % every_log == 0:
             ego = pipeline.ego()
             target = pipeline.target(t)
             ref = pipeline.last_reference
@@ -263,8 +265,8 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
                 v_WB=v_WB,
                 p_WB_est=ego.p_WB,
                 v_WB_est=ego.v_WB,
-                p_WP=truth.p_WP,
-                v_WP=truth.v_WP,
+                p_WP=truth_p[k],
+                v_WP=truth_v[k],
                 p_WP_est=None if target is None else target.p_WP,
                 v_WP_est=None if target is None else target.v_WP,
                 p_ref=None if ref is None else ref.p,

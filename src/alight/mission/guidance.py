@@ -23,7 +23,7 @@ import numpy as np
 
 from alight.mission.state_machine import MissionConfig
 from alight.planning.candidates import CandidatePlanner, sample_end_times
-from alight.planning.exploration import ExplorationRoute, footprint_width_m, lawnmower_waypoints
+from alight.planning.exploration import ExplorationRoute, footprint_width_m, lawnmower_waypoints, spiral_waypoints
 from alight.planning.min_jerk import MinJerkTrajectory
 from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference
 
@@ -42,8 +42,10 @@ class GuidanceConfig:
     """Narrower field of view of the downward camera; it sets the spacing of the coverage rows (rad)."""
     coverage_overlap: float = 0.2
     """Fraction of the camera footprint shared by neighbouring rows."""
-    cruise_speed_mps: float = 3.0
+    cruise_speed_mps: float = 4.0
     """Speed of point-to-point moves (take-off, abort, exploration legs) (m/s)."""
+    search_pattern: str = "spiral"
+    """``spiral`` (outward from the take-off point) or ``lawnmower`` (rows from the nearest corner)."""
     climb_speed_mps: float = 1.0
     """Vertical speed of a go-around (m/s)."""
     land_floor_below_pad_m: float = 0.3
@@ -142,7 +144,10 @@ class Guidance:
         elif mode is Mode.EXPLORE:
             x0, x1, y0, y1 = cfg.search_area
             spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
-            waypoints = lawnmower_waypoints(x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, start_xy=p0[:2])
+            if cfg.search_pattern == "spiral":
+                waypoints = spiral_waypoints(x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, center_xy=p0[:2])
+            else:
+                waypoints = lawnmower_waypoints(x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, start_xy=p0[:2])
             self._route = ExplorationRoute(waypoints, t0=t, p0=p0, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps)
         elif mode is Mode.TRACK:
             self.planner.reset()
@@ -150,15 +155,27 @@ class Guidance:
             goal = np.array([p0[0], p0[1], mcfg.explore_altitude_m])
             self._traj = _rest_to_rest(t, p0, v0 * 0.0, goal, cfg.cruise_speed_mps / 2)
 
-    def _track_height(self, t: float, target: PlatformEstimate) -> float:
-        """Height above the pad to track at (m). While the target is unseen the vehicle climbs from the
-        tracking height toward the exploration altitude, widening the camera's footprint around the
-        predicted position before the mission gives up and explores again (the target-lost failsafe)."""
+    def _track_height(self, t: float, ego: EgoState, target: PlatformEstimate, initialized: bool) -> float:
+        """Height above the pad to track at (m).
+
+        - Far from the platform the vehicle stays higher (half a metre more per metre of horizontal
+          distance beyond 2 m), so the platform stays in the downward camera's view during the approach.
+        - While the target is unseen it climbs toward the exploration altitude, widening the footprint
+          around the predicted position before the mission gives up and explores again (target lost).
+        - Until the estimator knows the platform's heading and speed (a first brief sighting), it holds
+          its height over the last sighting instead of diving at a position that is already stale.
+        """
         mcfg = self.mission_config
+        above_pad = float(ego.p_WB[2] - target.p_WP[2])
+        top = max(mcfg.explore_altitude_m - float(target.p_WP[2]), mcfg.track_height_m)
+        if not initialized:
+            return min(max(above_pad, mcfg.track_height_m), top)
+        distance = float(np.hypot(*(ego.p_WB[:2] - target.p_WP[:2])))
+        height = mcfg.track_height_m + 0.5 * max(distance - 2.0, 0.0)
         age = t - target.t_last_measurement
         grace = 0.5  # s: a few missed frames are normal
         frac = min(max((age - grace) / max(mcfg.lost_timeout_s - grace, 1e-3), 0.0), 1.0)
-        return mcfg.track_height_m + frac * max(mcfg.explore_altitude_m - mcfg.track_height_m, 0.0)
+        return min(height + frac * top, top)
 
     def _replan_tracking(
         self, t: float, ego: EgoState, estimator: PlatformEstimator, target: PlatformEstimate
@@ -171,7 +188,7 @@ class Guidance:
             p_pred = np.repeat(target.p_WP[None, :], times.size, axis=0)
             v_pred = np.zeros_like(p_pred)
             a_pred = np.zeros_like(p_pred)
-        p_end = p_pred + np.array([0.0, 0.0, self._track_height(t, target)])
+        p_end = p_pred + np.array([0.0, 0.0, self._track_height(t, ego, target, estimator.initialized)])
         p0, v0, a0 = self._start_state(t, ego)
         floor_z = float(np.max(p_pred[:, 2])) + 0.5 * self.mission_config.track_height_m
         floor_z = min(floor_z, float(p0[2]) - 0.05, float(np.min(p_end[:, 2])) - 0.05)

@@ -86,7 +86,11 @@ def _flight_core(s: object, airframe: Airframe, fov_rad: float) -> tuple[Mission
     guidance = Guidance(
         mission.config,
         planner,
-        GuidanceConfig(search_area=(area.x_min, area.x_max, area.y_min, area.y_max), camera_fov_rad=fov_rad),
+        GuidanceConfig(
+            search_area=(area.x_min, area.x_max, area.y_min, area.y_max),
+            camera_fov_rad=fov_rad,
+            search_pattern=sc.mission.search_pattern,  # type: ignore[attr-defined]
+        ),
     )
     gains = HighLevelGains.from_bandwidth(sc.controller.position_bandwidth_rad_s)  # type: ignore[attr-defined]
     controller = HighLevelController(airframe, gains)
@@ -107,6 +111,9 @@ def build_groundtruth(s: object, airframe: Airframe, rng: np.random.Generator) -
             accel_noise=est.accel_noise,
             heading_noise=est.heading_noise,
             turn_accel_noise=est.turn_accel_noise,
+            # Initialise from sightings up to 4 s apart: while searching, the platform is often seen in
+            # short bursts (a pass of the coverage pattern), and two bursts give its velocity well.
+            init_max_span=4.0,
         )
     )
     pipeline = Pipeline(

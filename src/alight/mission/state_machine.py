@@ -31,7 +31,7 @@ class MissionConfig:
 
     takeoff_altitude_m: float = 4.0
     """Hover height reached after take-off, above the take-off point (m)."""
-    explore_altitude_m: float = 10.0
+    explore_altitude_m: float = 12.0
     """Altitude of the coverage pattern (m)."""
     track_height_m: float = 2.5
     """Height above the pad while tracking, before the descent (m)."""

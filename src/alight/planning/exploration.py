@@ -35,7 +35,7 @@ from alight.planning.min_jerk import (
 )
 from alight.types import GRAVITY_MPS2, FloatArray
 
-__all__ = ["footprint_width_m", "lawnmower_waypoints", "ExplorationRoute"]
+__all__ = ["footprint_width_m", "lawnmower_waypoints", "spiral_waypoints", "ExplorationRoute"]
 
 
 def footprint_width_m(altitude_m: float, fov_rad: float, overlap: float = 0.0) -> float:
@@ -106,6 +106,68 @@ def lawnmower_waypoints(
         s, e = (a_from, a_to) if k % 2 == 0 else (a_to, a_from)
         out[2 * k] = (s, c, altitude_m) if along_x else (c, s, altitude_m)
         out[2 * k + 1] = (e, c, altitude_m) if along_x else (c, e, altitude_m)
+    return out
+
+
+def spiral_waypoints(
+    x_min: float,
+    x_max: float,
+    y_min: float,
+    y_max: float,
+    altitude_m: float,
+    spacing_m: float,
+    center_xy: FloatArray | None = None,
+) -> FloatArray:
+    """Waypoints of an outward square spiral over [x_min, x_max] x [y_min, y_max] at ``altitude_m``,
+    shape (2 L, 3): consecutive pairs are the start and end of each straight leg, as for
+    :func:`lawnmower_waypoints`.
+
+    Why a spiral: a moving platform that drives through the area is most likely near the centre, where
+    the vehicle takes off, early in the mission; a lawnmower from a corner reaches the centre only half-way
+    through its pass. The legs go east, north, west, south with lengths s, s, 2s, 2s, 3s, 3s, ... (s =
+    ``spacing_m``) around ``center_xy`` (default: the area's centre), so rings are s apart; legs are
+    clipped to the area, and each leg is cut short by a quarter spacing at both ends so that the turn
+    between two legs has room. Corner cuts and the clipped outer ring leave points up to about 2/3 s from
+    the nearest leg (a lawnmower guarantees s / 2), so use a little more overlap than for a lawnmower.
+    """
+    vals = (x_min, x_max, y_min, y_max, altitude_m, spacing_m)
+    if not all(math.isfinite(v) for v in vals):
+        raise ValueError("area bounds, altitude and spacing must be finite")
+    if not (x_max > x_min and y_max > y_min):
+        raise ValueError(f"empty search area: x [{x_min}, {x_max}], y [{y_min}, {y_max}]")
+    if not spacing_m > 0.0:
+        raise ValueError(f"spacing_m must be > 0, got {spacing_m}")
+    c = np.array(
+        [0.5 * (x_min + x_max), 0.5 * (y_min + y_max)] if center_xy is None else center_xy, dtype=np.float64
+    ).reshape(-1)
+    if c.shape != (2,) or not np.isfinite(c).all():
+        raise ValueError("center_xy must be a finite (2,) vector")
+    c = np.clip(c, [x_min, y_min], [x_max, y_max])
+    reach = max(c[0] - x_min, x_max - c[0], c[1] - y_min, y_max - c[1])
+    directions = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    lo, hi = np.array([x_min, y_min]), np.array([x_max, y_max])
+    legs: list[tuple[FloatArray, FloatArray]] = []
+    vertex = c.copy()
+    k = 0
+    while True:
+        length = spacing_m * (k // 2 + 1)
+        nxt = vertex + directions[k % 4] * length
+        a, b = np.clip(vertex, lo, hi), np.clip(nxt, lo, hi)
+        leg_len = float(np.linalg.norm(b - a))
+        if leg_len > 1e-6:
+            u = (b - a) / leg_len
+            inset = min(0.25 * spacing_m, 0.25 * leg_len)
+            legs.append((a + inset * u, b - inset * u))
+        vertex = nxt
+        k += 1
+        # Stop when the spiral has grown past the area on every side: its legs now run along the
+        # clipped border, which the last ring already flew.
+        if length >= 2.0 * reach + spacing_m and k % 2 == 0:
+            break
+    out = np.empty((2 * len(legs), 3))
+    for i, (a, b) in enumerate(legs):
+        out[2 * i] = (a[0], a[1], altitude_m)
+        out[2 * i + 1] = (b[0], b[1], altitude_m)
     return out
 
 
