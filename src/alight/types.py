@@ -145,6 +145,34 @@ class EgoState:
         else:
             object.__setattr__(self, "a_WB", _frozen(self.a_WB, (3,), "a_WB"))
 
+    @classmethod
+    def trusted(
+        cls,
+        t: float,
+        p_WB: FloatArray,
+        v_WB: FloatArray,
+        q_WB: FloatArray,
+        w_WB_B: FloatArray,
+        a_WB: FloatArray | None = None,
+    ) -> EgoState:
+        """Construct without validation, for producers that guarantee float64 arrays of the right shapes
+        and a unit quaternion (the ego estimator at 100-200 Hz, where the checks cost more than the
+        filter step). The arrays are still copied and made read-only."""
+        self = object.__new__(cls)
+        setattr_ = object.__setattr__
+        setattr_(self, "t", float(t))
+        for name, value in (("p_WB", p_WB), ("v_WB", v_WB), ("q_WB", q_WB), ("w_WB_B", w_WB_B)):
+            arr = value.copy()
+            arr.flags.writeable = False
+            setattr_(self, name, arr)
+        if a_WB is None:
+            setattr_(self, "a_WB", _ZERO3)
+        else:
+            arr = a_WB.copy()
+            arr.flags.writeable = False
+            setattr_(self, "a_WB", arr)
+        return self
+
     @property
     def R_WB(self) -> FloatArray:
         return quat_to_rotmat(self.q_WB)

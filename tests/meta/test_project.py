@@ -67,3 +67,19 @@ def test_simulator_never_imports_the_pipeline() -> None:
 
 def test_license_is_mit() -> None:
     assert (ROOT / "LICENSE").read_text(encoding="utf-8").startswith("MIT License")
+
+
+def test_trusted_ego_state_matches_the_checked_one() -> None:
+    import numpy as np
+
+    from alight.types import EgoState
+
+    p, v, w, a = np.arange(3.0), np.ones(3), np.zeros(3), np.full(3, 2.0)
+    q = np.array([0.0, 0.0, np.sin(0.3), np.cos(0.3)])
+    checked = EgoState(1.5, p, v, q, w, a)
+    fast = EgoState.trusted(1.5, p, v, q, w, a)
+    for name in ("p_WB", "v_WB", "q_WB", "w_WB_B", "a_WB"):
+        np.testing.assert_array_equal(getattr(checked, name), getattr(fast, name))
+        assert not getattr(fast, name).flags.writeable
+    p[0] = 99.0  # the message keeps its own copy
+    assert fast.p_WB[0] == 0.0 and fast.t == checked.t

@@ -924,5 +924,7 @@ class EgoEkf:
             else:
                 a = np.zeros(3)
                 w = np.zeros(3)
-            self._state_cache = EgoState(t=self._t, p_WB=x[0:3], v_WB=x[3:6], q_WB=x[6:10], w_WB_B=w, a_WB=a)
+            # The filter's state is finite and its quaternion unit by construction (checked inputs,
+            # renormalised after every step), so the unchecked constructor is safe here.
+            self._state_cache = EgoState.trusted(self._t, x[0:3], x[3:6], x[6:10], w, a)
         return self._state_cache

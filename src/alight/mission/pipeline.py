@@ -126,6 +126,7 @@ class Pipeline:
         self.last_reference: Reference | None = None
         self.last_measurement: PlatformMeasurement | None = None
         self._ego: EgoState | None = None
+        self._target: PlatformEstimate | None = None
 
     # -- sensors ----------------------------------------------------------------------------------------
     def on_imu(self, t: float, f_B: FloatArray, w_B: FloatArray) -> None:
@@ -178,6 +179,7 @@ class Pipeline:
         measurement = self.geolocator.locate(best, p_WB, R_WB)
         if measurement is None:
             return out
+        self._target = None
         if self.platform_estimator.update(measurement):
             self.stats.measurements += 1
             if self.stats.t_first_detection is None:
@@ -199,7 +201,11 @@ class Pipeline:
     def target(self, t: float) -> PlatformEstimate | None:
         # Before the estimator has a heading and speed it still knows where the platform was seen: the
         # mission tracks that (a brief sighting at the edge of the image must not be thrown away).
-        return self.platform_estimator.state(t) if self.platform_estimator.has_measurement else None
+        if not self.platform_estimator.has_measurement:
+            return None
+        if self._target is None or self._target.t != t:  # the mission and the log ask at the same t
+            self._target = self.platform_estimator.state(t)
+        return self._target
 
     def step(self, t: float) -> MissionStatus:
         """Run the mission logic and replan (at the planner's rate)."""
