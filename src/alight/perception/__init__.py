@@ -1,1 +1,99 @@
-"""perception"""
+"""Perception: detectors that find a landing pad in a camera image, and geolocators that turn a detection
+into a platform measurement in the world frame.
+
+- :class:`Detector`: ``detect(image, t) -> list[Observation]``, a pure function of the image (no flight
+  state): ``falanga`` (paper 000's cross-and-ring tag, Alg. 1), ``aruco`` (the AprilTag pad's markers via
+  OpenCV), ``apriltag`` (every AprilTag 36h11 marker, no pad layout).
+- :class:`Geolocator`: ``locate(observation, p_WB, R_WB) -> PlatformMeasurement | None`` with the ego pose
+  at the capture time: ``pnp`` (PnP on the observation's points) and ``direct`` (observations that carry
+  ``p_CP`` already, like the ground-truth sensor).
+
+:data:`REGISTRY` and :data:`GEOLOCATORS` map names to factories, so a preset picks blocks by name. A new
+detector: write ``perception/<name>.py`` with a class that satisfies :class:`Detector`, add a factory here,
+and the contract tests in ``tests/perception`` run over it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+from alight.perception.aruco import ArucoPadDetector, merge_observations
+from alight.perception.falanga_tag import FalangaDetectorConfig, FalangaTagDetector
+from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
+from alight.perception.pnp import PnpResult, solve_pnp
+from alight.types import FloatArray, Observation, PlatformMeasurement
+
+
+@runtime_checkable
+class Detector(Protocol):
+    """Finds the pad (or its markers) in one image."""
+
+    def detect(self, image: Any, t: float) -> list[Observation]:
+        """Observations in ``image`` (grey or BGR uint8, shape (H, W) or (H, W, 3)) captured at ``t`` (s);
+        ``[]`` when nothing is found. Must not raise on an empty, tiny or uniform image."""
+        ...
+
+
+@runtime_checkable
+class Geolocator(Protocol):
+    """Turns an observation and the ego pose at its capture time into a measurement in W."""
+
+    def locate(self, obs: Observation, p_WB: FloatArray, R_WB: FloatArray) -> PlatformMeasurement | None:
+        """Pad centre (m, W) with covariance (and yaw when measured), or None when the observation does
+        not give one. ``p_WB`` (3,) body position in W (m), ``R_WB`` (3, 3) body attitude."""
+        ...
+
+
+def _falanga(**kw: Any) -> Detector:
+    from alight.pads import FalangaTag
+
+    size_m = kw.pop("size_m", 1.5)
+    tag = kw.pop("tag", None) or FalangaTag.default(size_m)
+    config = kw.pop("config", None) or FalangaDetectorConfig(**kw)
+    return FalangaTagDetector(tag, config)
+
+
+def _aruco(**kw: Any) -> Detector:
+    from alight.pads import AprilTagPad
+
+    pad = kw.pop("pad", None) or AprilTagPad.default(kw.pop("size_m", 1.5))
+    kw.setdefault("subpixel_corners", True)  # sub-pixel corners halve the PnP error on rendered frames
+    return ArucoPadDetector(pad, **kw)
+
+
+def _apriltag(**kw: Any) -> Detector:
+    return ArucoPadDetector(None, **kw)
+
+
+REGISTRY: dict[str, Callable[..., Detector]] = {
+    "falanga": _falanga,
+    "aruco": _aruco,
+    "apriltag": _apriltag,
+}
+"""Detectors by name. Factories take keyword overrides: ``falanga`` (``size_m``, ``tag``, ``config`` or
+any :class:`FalangaDetectorConfig` field), ``aruco`` (``size_m``, ``pad``, ``dictionary``, ``parameters``,
+``subpixel_corners``, default True), ``apriltag`` (``dictionary``, ``parameters``)."""
+
+GEOLOCATORS: dict[str, Callable[..., Geolocator]] = {
+    "pnp": PnpGeolocator,
+    "direct": DirectGeolocator,
+}
+"""Geolocators by name: ``pnp`` (``camera, mount, sigma_px, sigma_ego_pos_m, sigma_ego_att_rad,
+yaw_fold, max_reprojection_px``) and ``direct`` (``mount, sigma_ego_pos_m, sigma_ego_att_rad,
+default_sigma_m``)."""
+
+__all__ = [
+    "GEOLOCATORS",
+    "REGISTRY",
+    "ArucoPadDetector",
+    "Detector",
+    "DirectGeolocator",
+    "FalangaDetectorConfig",
+    "FalangaTagDetector",
+    "Geolocator",
+    "PnpGeolocator",
+    "PnpResult",
+    "merge_observations",
+    "solve_pnp",
+]
