@@ -74,6 +74,22 @@ class PerceptionSpec(_Strict):
     """Beyond this distance the pad is too small to detect (m)."""
 
 
+class CameraSpec(_Strict):
+    """The onboard camera of the vision presets and how its images are rendered."""
+
+    calibration: str | None = None
+    """OpenCV calibration YAML of a pinhole camera; None: the default downward 752x480 camera."""
+    ground: Literal["grass", "asphalt", "concrete"] = "grass"
+    """Procedural ground texture."""
+    noise_dn: NonNegFloat = 2.0
+    """Sensor noise, standard deviation in grey levels."""
+    exposure_s: NonNegFloat = 0.0
+    """Exposure time for motion blur from the body rates (s); 0 for none."""
+    exposure_gain: PositiveFloat = 1.0
+    """Brightness gain (exposure change)."""
+    gamma: PositiveFloat = 1.0
+
+
 class FaultSpec(_Strict):
     dropout_prob: Probability = 0.0
     """Extra probability that a detection is lost."""
@@ -166,6 +182,7 @@ class Scenario(_Strict):
     platform: PlatformSpec = Field(default_factory=PlatformSpec)
     wind: WindSpec = Field(default_factory=WindSpec)
     perception: PerceptionSpec = Field(default_factory=PerceptionSpec)
+    camera: CameraSpec = Field(default_factory=CameraSpec)
     faults: FaultSpec = Field(default_factory=FaultSpec)
     search_area: SearchArea = Field(default_factory=SearchArea)
     mission: MissionSpec = Field(default_factory=MissionSpec)

@@ -21,6 +21,7 @@ import numpy as np
 
 import alight
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
+from alight.cameras.pinhole import camera_pose_W
 from alight.control.rate import pack_low_level_params
 from alight.energy import flight_energy_J
 from alight.evaluation.log import MissionLog
@@ -31,6 +32,8 @@ from alight.sim.platform import Platform, PlatformConfig
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params
 from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact
+from alight.sim.render import Renderer, RenderOptions
+from alight.sim.textures import make_ground_texture
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import GustWind, NoWind, SteadyWind
 from alight.types import Mode, Outcome, quat_to_rotmat
@@ -115,7 +118,7 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
     s = scenario
     seeds = np.random.SeedSequence(s.seed).spawn(8)
     rngs = [np.random.default_rng(c) for c in seeds]
-    rng_place, _rng_spare, rng_wind, rng_imu, rng_odo, rng_range, rng_perc, rng_pipe = rngs
+    rng_place, rng_render, rng_wind, rng_imu, rng_odo, rng_range, rng_perc, rng_pipe = rngs
 
     platform = _place_platform(s, rng_place)
     wind = _wind(s, rng_wind)
@@ -146,6 +149,23 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
         preset.mount.p_BC,
         rng_perc,
     )
+
+    renderer = None
+    if preset.uses_camera:
+        cs = s.camera
+        renderer = Renderer(
+            preset.camera,
+            make_ground_texture(cs.ground, rng_render),
+            preset.pad,
+            RenderOptions(
+                noise_sigma_dn=cs.noise_dn,
+                exposure_time_s=cs.exposure_s,
+                exposure_gain=cs.exposure_gain,
+                gamma=cs.gamma,
+            ),
+            rng_render,
+            R_BC=preset.mount.R_BC,
+        )
 
     sim_params = pack_params(airframe)
     ll_params = pack_low_level_params(airframe, preset.rate_gains)
@@ -231,13 +251,24 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
             r = rangefinder.measure(p_WB, q_WB, truth, pad)
             pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
         if t + 1e-9 >= next_capture:
-            obs = truth_perception.observe(t, p_WB, quat_to_rotmat(q_WB), truth_p[k])
-            pending.append((t + pc.latency_s, t, obs))
+            # An image (or the truth sensor's report) is taken now and reaches the pipeline after the
+            # processing latency; what it shows is fixed at the capture time.
+            R_WB = quat_to_rotmat(q_WB)
+            if renderer is not None:
+                p_WC, R_WC = camera_pose_W(p_WB, R_WB, preset.mount)
+                frame: object = renderer.render(p_WC, R_WC, (truth_p[k], float(truths.yaw[k])), w_WB_B)
+            else:
+                frame = truth_perception.observe(t, p_WB, R_WB, truth_p[k])
+            pending.append((t + pc.latency_s, t, frame))
             next_capture += perception_period
         while pending and pending[0][0] <= t + 1e-9:
-            _, t_cap, obs = pending.popleft()
-            for m in pipeline.on_observations(t_cap, obs):
-                if log is not None:
+            _, t_cap, frame = pending.popleft()
+            if renderer is not None:
+                _, measurements = pipeline.on_image(t_cap, frame)  # type: ignore[arg-type]
+            else:
+                measurements = pipeline.on_observations(t_cap, frame)  # type: ignore[arg-type]
+            if log is not None:
+                for m in measurements:
                     log.add_detection(m.t, m.p_WP)
 
         # -- decisions ----------------------------------------------------------------------------------

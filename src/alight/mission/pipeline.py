@@ -156,14 +156,16 @@ class Pipeline:
         valid = [r for r in self._ranges if r is not None]
         self.range_m = max(valid) if len(valid) == len(self._ranges) else None
 
-    def on_image(self, t_capture: float, image: np.ndarray) -> list[Observation]:
-        """Run the detector on an image taken at ``t_capture`` and use what it finds."""
+    def on_image(
+        self, t_capture: float, image: np.ndarray
+    ) -> tuple[list[Observation], list[PlatformMeasurement]]:
+        """Run the detector on an image taken at ``t_capture`` and use what it finds; returns the
+        observations and the platform measurements made from them."""
         if self.detector is None:
             raise RuntimeError("this pipeline has no detector; feed observations with on_observations")
         self.stats.frames += 1
         observations = self.detector.detect(image, t_capture)
-        self.on_observations(t_capture, observations)
-        return observations
+        return observations, self.on_observations(t_capture, observations)
 
     def on_observations(self, t_capture: float, observations: list[Observation]) -> list[PlatformMeasurement]:
         """Geolocate observations of an image taken at ``t_capture`` and update the platform estimate."""

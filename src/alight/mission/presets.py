@@ -1,5 +1,7 @@
 """Presets: named choices of one implementation per block.
 
+- ``falanga2017``: paper 000 end to end (camera, tag detector, PnP, unicycle EKF, candidate planner,
+  Faessler controller, state machine).
 - ``groundtruth``: the falanga2017 blocks (IMU + odometry EKF, unicycle EKF, minimum-jerk candidate
   planner, Faessler controller, paper 000's state machine) with the camera and detector replaced by the
   ground-truth perception sensor. It is the "perfect perception" ablation of every other preset.
@@ -18,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from alight.airframe import Airframe
-from alight.cameras.pinhole import CameraMount
+from alight.cameras.pinhole import CameraMount, PinholeCamera
 from alight.control.high_level import HighLevelController, HighLevelGains
 from alight.control.rate import RateControllerGains
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
@@ -26,7 +28,9 @@ from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
-from alight.perception.geolocation import DirectGeolocator
+from alight.pads.falanga_tag import FalangaTag
+from alight.perception.falanga_tag import FalangaTagDetector
+from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
 from alight.planning.min_jerk import EndConstraint
 
@@ -52,6 +56,10 @@ class Preset:
     mount: CameraMount
     rate_gains: RateControllerGains
     uses_camera: bool
+    camera: PinholeCamera | None = None
+    """The camera model the runner renders through (vision presets)."""
+    pad: object | None = None
+    """The pad design the runner draws on the platform (vision presets)."""
 
 
 def _mission_config(s: object) -> MissionConfig:
@@ -103,19 +111,7 @@ def build_groundtruth(s: object, airframe: Airframe, rng: np.random.Generator) -
     fov = math.radians(min(perception.fov_deg))
     mission, guidance, controller, ego = _flight_core(s, airframe, fov)
     mount = CameraMount.downward()
-    est = s.estimator  # type: ignore[attr-defined]
-    platform_estimator = PlatformEkf(
-        PlatformEkfConfig(
-            use_turn_rate=est.use_turn_rate,
-            gating=est.gating,
-            accel_noise=est.accel_noise,
-            heading_noise=est.heading_noise,
-            turn_accel_noise=est.turn_accel_noise,
-            # Initialise from sightings up to 4 s apart: while searching, the platform is often seen in
-            # short bursts (a pass of the coverage pattern), and two bursts give its velocity well.
-            init_max_span=4.0,
-        )
-    )
+    platform_estimator = _platform_estimator(s)
     pipeline = Pipeline(
         ego_estimator=ego,
         geolocator=DirectGeolocator(mount),
@@ -127,8 +123,54 @@ def build_groundtruth(s: object, airframe: Airframe, rng: np.random.Generator) -
     return Preset("groundtruth", pipeline, mount, RateControllerGains(), uses_camera=False)
 
 
+def _platform_estimator(s: object) -> PlatformEkf:
+    est = s.estimator  # type: ignore[attr-defined]
+    return PlatformEkf(
+        PlatformEkfConfig(
+            use_turn_rate=est.use_turn_rate,
+            gating=est.gating,
+            accel_noise=est.accel_noise,
+            heading_noise=est.heading_noise,
+            turn_accel_noise=est.turn_accel_noise,
+            # Initialise from sightings up to 4 s apart: while searching, the platform is often seen in
+            # short bursts (a pass of the coverage pattern), and two bursts give its velocity well.
+            init_max_span=4.0,
+        )
+    )
+
+
+def load_preset_camera(s: object) -> PinholeCamera:
+    """The scenario's camera model (the default downward 752x480 camera unless a calibration is given)."""
+    path = s.camera.calibration  # type: ignore[attr-defined]
+    return PinholeCamera.default_downward() if path is None else PinholeCamera.from_opencv_yaml(path)
+
+
+def build_falanga2017(s: object, airframe: Airframe, rng: np.random.Generator) -> Preset:
+    """Paper 000 end to end: the downward camera's images, the cross-and-circle tag detector (Alg. 1),
+    PnP and geolocation with the ego estimate at the capture time, the unicycle EKF, the candidate
+    planner, the Faessler controller and the state machine."""
+    camera = load_preset_camera(s)
+    h_fov, v_fov = camera.fov_rad()
+    mission, guidance, controller, ego = _flight_core(s, airframe, min(h_fov, v_fov))
+    mount = CameraMount.downward()
+    tag = FalangaTag.default(size_m=s.platform.pad_size_m)  # type: ignore[attr-defined]
+    pipeline = Pipeline(
+        ego_estimator=ego,
+        detector=FalangaTagDetector(tag),
+        geolocator=PnpGeolocator(
+            camera, mount, sigma_px=1.0, sigma_ego_pos_m=0.02, sigma_ego_att_rad=0.005, yaw_fold=4
+        ),
+        platform_estimator=_platform_estimator(s),
+        mission=mission,
+        guidance=guidance,
+        controller=controller,
+    )
+    return Preset("falanga2017", pipeline, mount, RateControllerGains(), uses_camera=True, camera=camera, pad=tag)
+
+
 PRESETS: dict[str, Callable[[object, Airframe, np.random.Generator], Preset]] = {
     "groundtruth": build_groundtruth,
+    "falanga2017": build_falanga2017,
 }
 
 

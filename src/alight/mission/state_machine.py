@@ -57,6 +57,10 @@ class MissionConfig:
     """The descent is abandoned when the horizontal offset to the pad exceeds this (m) ..."""
     land_abort_min_height_m: float = 0.4
     """... while still higher than this above the pad (below it, committing is safer) (m)."""
+    land_commit_height_m: float = 1.5
+    """Below this height above the pad a lost target no longer aborts the descent: a downward camera
+    cannot see the whole pad from closer than about its own size, so the last metre is flown on the
+    platform estimator's prediction (paper 000's reason for the model-based filter) (m)."""
     motor_cutoff_range_m: float = 0.03
     """The motors stop when the range finder (from the landing-gear feet) reads below this (m)."""
     max_go_arounds: int = 3
@@ -206,7 +210,7 @@ class Mission:
                 self._go(t, Mode.LANDED, "range below the motor cut-off")
             elif over_budget:
                 self._go(t, Mode.ABORT, "time budget spent")
-            elif target is None or age > cfg.land_lost_timeout_s:
+            elif target is None or (age > cfg.land_lost_timeout_s and (height is None or height > cfg.land_commit_height_m)):
                 self._go_around(t, "target lost during the descent")
             else:
                 dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))

@@ -63,8 +63,8 @@ points, their points in P (z = 0) for PnP, and a quality in [0, 1]: the pattern 
 inlier fraction of the chosen feature. The tag is symmetric under rotations by 90 deg, so the pad's yaw
 is only defined modulo pi/2; the quad's corners are labelled so that the (+x, +y) corner is the one
 nearest the image's top-left, which is the right label for a camera with the image top toward the pad's
-front (+x). The paper reports 12 ms per 752x480 frame on an Odroid XU4 (Table I); this runs in ~1 ms on
-one desktop core (``benchmarks/bench_detectors.py``).
+front (+x). The paper reports 12 ms per 752x480 frame on an Odroid XU4 (Table I); this runs in under 1 ms
+on one desktop core (``benchmarks/bench_detectors.py``).
 """
 
 from __future__ import annotations
