@@ -83,3 +83,10 @@ def test_trusted_ego_state_matches_the_checked_one() -> None:
         assert not getattr(fast, name).flags.writeable
     p[0] = 99.0  # the message keeps its own copy
     assert fast.p_WB[0] == 0.0 and fast.t == checked.t
+
+
+def test_test_file_names_are_unique() -> None:
+    # Test folders have no __init__.py, so pytest imports test files by basename: two files with the
+    # same name in different folders break collection on a fresh checkout.
+    names = [p.name for p in (ROOT / "tests").rglob("test_*.py")]
+    assert len(names) == len(set(names)), sorted(n for n in names if names.count(n) > 1)

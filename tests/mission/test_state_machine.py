@@ -115,7 +115,12 @@ def test_land_to_landed_on_range_cutoff() -> None:
 
 def test_land_to_go_around_when_target_lost_or_off_pad() -> None:
     m = at_mode(Mode.LAND)
-    assert m.step(3.0, ego(p=(5.0, 0, 2.0)), target(3.0, age=CFG.land_lost_timeout_s + 0.1), None).mode is Mode.GO_AROUND
+    high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5))
+    assert m.step(3.0, high, target(3.0, age=CFG.land_lost_timeout_s + 0.1), None).mode is Mode.GO_AROUND
+    # below the commit height a lost target does not stop the descent (the camera cannot see the pad)
+    m = at_mode(Mode.LAND)
+    low = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.2))
+    assert m.step(3.0, low, target(3.0, age=CFG.land_lost_timeout_s + 0.1), None).mode is Mode.LAND
     m = at_mode(Mode.LAND)
     far = ego(p=(5.0 + CFG.land_abort_offset_m + 0.1, 0, PAD_Z + CFG.land_abort_min_height_m + 0.5))
     assert m.step(3.0, far, target(3.0), None).mode is Mode.GO_AROUND
