@@ -134,3 +134,15 @@ def test_missing_scenario_file(tmp_path, capsys) -> None:  # type: ignore[no-unt
 def test_three_line_scenario_has_defaults() -> None:
     s = scenario_from_dict({"preset": "groundtruth", "seed": 4, "platform": {"path": "figure8", "speed_mps": 4.2}})
     assert s.perception.rate_hz == 20 and s.perception.latency_s == 0.1 and s.platform.pad_size_m == 1.5
+
+
+def test_every_example_scenario_validates() -> None:
+    from pathlib import Path
+
+    from alight.scenario import load_scenario
+
+    examples = sorted((Path(__file__).resolve().parents[2] / "examples").glob("*.yaml"))
+    assert len(examples) >= 6
+    for path in examples:
+        s = load_scenario(path)
+        assert s.preset in ("groundtruth", "falanga2017"), path
