@@ -13,7 +13,12 @@ import time
 from alight.evaluation.runner import run_mission
 from alight.scenario import scenario_from_dict
 
-_SCENARIO = {"preset": "groundtruth", "seed": 7, "duration_s": 60.0, "platform": {"path": "circle", "speed_mps": 2.0}}
+_SCENARIO = {
+    "preset": "groundtruth",
+    "seed": 7,
+    "duration_s": 60.0,
+    "platform": {"path": "circle", "speed_mps": 2.0},
+}
 
 
 def _rtf(scenario_dict: dict, seed: int, record: bool) -> tuple[float, str]:

@@ -26,15 +26,34 @@ CONDITIONS = {
 
 def _fly(args: tuple[str, str, dict, int]) -> dict:
     name, preset, platform, seed = args
-    r = run_mission(scenario_from_dict({"preset": preset, "seed": seed, "platform": platform}), record=False).result
-    return {"condition": name, **{k: r[k] for k in (
-        "seed", "outcome", "touchdown_error_m", "touchdown_rel_vertical_speed_mps",
-        "touchdown_rel_horizontal_speed_mps", "time_first_detection_s", "time_landing_start_s",
-        "time_to_land_s", "go_arounds", "wall_time_s", "simulated_time_s")}}
+    r = run_mission(
+        scenario_from_dict({"preset": preset, "seed": seed, "platform": platform}), record=False
+    ).result
+    return {
+        "condition": name,
+        **{
+            k: r[k]
+            for k in (
+                "seed",
+                "outcome",
+                "touchdown_error_m",
+                "touchdown_rel_vertical_speed_mps",
+                "touchdown_rel_horizontal_speed_mps",
+                "time_first_detection_s",
+                "time_landing_start_s",
+                "time_to_land_s",
+                "go_arounds",
+                "wall_time_s",
+                "simulated_time_s",
+            )
+        },
+    }
 
 
 def _q(values: list[float], q: float) -> float:
-    return statistics.quantiles(values, n=100, method="inclusive")[int(q) - 1] if len(values) > 1 else values[0]
+    return (
+        statistics.quantiles(values, n=100, method="inclusive")[int(q) - 1] if len(values) > 1 else values[0]
+    )
 
 
 def main() -> None:
@@ -56,8 +75,10 @@ def main() -> None:
         with open(args.jsonl, "w") as f:
             for r in rows:
                 f.write(json.dumps(r) + "\n")
-    print("| condition | landed | touchdown error median / p90 / max (m) | rel. vertical speed max (m/s) "
-          "| first detection median (s) | touchdown median (s) | failures |")
+    print(
+        "| condition | landed | touchdown error median / p90 / max (m) | rel. vertical speed max (m/s) "
+        "| first detection median (s) | touchdown median (s) | failures |"
+    )
     print("|---|---|---|---|---|---|---|")
     for name in CONDITIONS:
         rs = [r for r in rows if r["condition"] == name]
@@ -74,8 +95,10 @@ def main() -> None:
         print(f"| {name} | {len(ok)}/{len(rs)} | {err_txt} | {vz_txt} | {det_txt} | {land_txt} | {fails} |")
     sim = sum(r["simulated_time_s"] for r in rows)
     wall = sum(r["wall_time_s"] for r in rows)
-    print(f"\n{len(rows)} missions, {sim:.0f} s simulated in {wall:.0f} s of mission wall time "
-          f"(sum over workers): {sim / wall:.1f}x real time per core")
+    print(
+        f"\n{len(rows)} missions, {sim:.0f} s simulated in {wall:.0f} s of mission wall time "
+        f"(sum over workers): {sim / wall:.1f}x real time per core"
+    )
 
 
 if __name__ == "__main__":

@@ -318,7 +318,7 @@ class Command:
             raise ValueError(f"thrust_N must be finite, got {self.thrust_N}")
 
 
-class Mode(str, enum.Enum):
+class Mode(enum.StrEnum):
     """Mission modes (paper 000 Sec. II-F plus the failsafe modes)."""
 
     IDLE = "idle"
@@ -331,7 +331,7 @@ class Mode(str, enum.Enum):
     ABORT = "abort"
 
 
-class Outcome(str, enum.Enum):
+class Outcome(enum.StrEnum):
     """How a mission ended, judged from ground truth by the simulator."""
 
     LANDED = "landed"

@@ -44,7 +44,9 @@ CONDITIONS = [
 @pytest.mark.slow
 @pytest.mark.parametrize(("path", "speed", "seed"), CONDITIONS)
 def test_groundtruth_mission_lands(path: str, speed: float, seed: int) -> None:
-    s = scenario_from_dict({"preset": "groundtruth", "seed": seed, "platform": {"path": path, "speed_mps": speed}})
+    s = scenario_from_dict(
+        {"preset": "groundtruth", "seed": seed, "platform": {"path": path, "speed_mps": speed}}
+    )
     run = run_mission(s, record=False)
     r = run.result
     assert r["outcome"] == "landed", r["mode_history"]
@@ -132,7 +134,9 @@ def test_missing_scenario_file(tmp_path, capsys) -> None:  # type: ignore[no-unt
 
 
 def test_three_line_scenario_has_defaults() -> None:
-    s = scenario_from_dict({"preset": "groundtruth", "seed": 4, "platform": {"path": "figure8", "speed_mps": 4.2}})
+    s = scenario_from_dict(
+        {"preset": "groundtruth", "seed": 4, "platform": {"path": "figure8", "speed_mps": 4.2}}
+    )
     assert s.perception.rate_hz == 20 and s.perception.latency_s == 0.1 and s.platform.pad_size_m == 1.5
 
 

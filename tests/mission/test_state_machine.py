@@ -13,12 +13,19 @@ PAD_Z = 0.5
 
 
 def ego(p=(0.0, 0.0, 0.1), v=(0.0, 0.0, 0.0), t=0.0) -> EgoState:
-    return EgoState(t=t, p_WB=np.array(p), v_WB=np.array(v), q_WB=np.array([0, 0, 0, 1.0]), w_WB_B=np.zeros(3))
+    return EgoState(
+        t=t, p_WB=np.array(p), v_WB=np.array(v), q_WB=np.array([0, 0, 0, 1.0]), w_WB_B=np.zeros(3)
+    )
 
 
 def target(t: float, p=(5.0, 0.0, PAD_Z), v=(1.0, 0.0, 0.0), age=0.0) -> PlatformEstimate:
     return PlatformEstimate(
-        t=t, p_WP=np.array(p), v_WP=np.array(v), a_WP=np.zeros(3), yaw=0.0, cov_p_WP=np.eye(3) * 0.01,
+        t=t,
+        p_WP=np.array(p),
+        v_WP=np.array(v),
+        a_WP=np.zeros(3),
+        yaw=0.0,
+        cov_p_WP=np.eye(3) * 0.01,
         t_last_measurement=t - age,
     )
 

@@ -143,7 +143,10 @@ def test_route_rejects_bad_waypoints() -> None:
 def test_spiral_covers_the_area_from_its_centre_outwards() -> None:
     from alight.planning.exploration import spiral_waypoints
 
-    for area, spacing, centre in [((-20, 20, -20, 20), 10.0, (0.0, 0.0)), ((-30, 10, -5, 25), 7.0, (0.0, 0.0))]:
+    for area, spacing, centre in [
+        ((-20, 20, -20, 20), 10.0, (0.0, 0.0)),
+        ((-30, 10, -5, 25), 7.0, (0.0, 0.0)),
+    ]:
         w = spiral_waypoints(*area, 10.0, spacing, center_xy=np.array(centre))
         assert w.shape[1] == 3 and w.shape[0] % 2 == 0 and np.all(w[:, 2] == 10.0)
         legs = w[:, :2].reshape(-1, 2, 2)

@@ -30,10 +30,10 @@ from alight.mission.presets import build_preset
 from alight.scenario import Scenario
 from alight.sim.platform import Platform, PlatformConfig
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params
-from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
-from alight.sim.touchdown import Contact, ContactLimits, judge_contact
 from alight.sim.render import Renderer, RenderOptions
+from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
 from alight.sim.textures import make_ground_texture
+from alight.sim.touchdown import Contact, ContactLimits, judge_contact
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import GustWind, NoWind, SteadyWind
 from alight.types import Mode, Outcome, quat_to_rotmat
@@ -112,7 +112,9 @@ def _wind(s: Scenario, rng: np.random.Generator) -> NoWind | SteadyWind | GustWi
     return NoWind()
 
 
-def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, record: bool = True) -> MissionRun:
+def run_mission(
+    scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, record: bool = True
+) -> MissionRun:
     """Fly one mission of ``scenario`` and return its result (and log when ``record``)."""
     wall0 = time.perf_counter()
     s = scenario
@@ -211,8 +213,20 @@ def run_mission(scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, re
             v_air = wind.air_velocity_W(t)
         v_before = x[SL_V].copy()
         x = advance(
-            x, thrust_N, w_cmd, motors_on, f_wind, v_air, sim_params, ll_params, PHYSICS_DT, n_sub,
-            support_z, support_v, gear, supported,
+            x,
+            thrust_N,
+            w_cmd,
+            motors_on,
+            f_wind,
+            v_air,
+            sim_params,
+            ll_params,
+            PHYSICS_DT,
+            n_sub,
+            support_z,
+            support_v,
+            gear,
+            supported,
         )
         t = k * TICK_DT
         p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]

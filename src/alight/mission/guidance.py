@@ -23,7 +23,12 @@ import numpy as np
 
 from alight.mission.state_machine import MissionConfig
 from alight.planning.candidates import CandidatePlanner, sample_end_times
-from alight.planning.exploration import ExplorationRoute, footprint_width_m, lawnmower_waypoints, spiral_waypoints
+from alight.planning.exploration import (
+    ExplorationRoute,
+    footprint_width_m,
+    lawnmower_waypoints,
+    spiral_waypoints,
+)
 from alight.planning.min_jerk import MinJerkTrajectory
 from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference
 
@@ -55,7 +60,9 @@ class GuidanceConfig:
     """Heading held throughout (rad)."""
 
 
-def _rest_to_rest(t0: float, p0: FloatArray, v0: FloatArray, pf: FloatArray, speed: float) -> MinJerkTrajectory:
+def _rest_to_rest(
+    t0: float, p0: FloatArray, v0: FloatArray, pf: FloatArray, speed: float
+) -> MinJerkTrajectory:
     # A rest-to-rest minimum-jerk move peaks at 1.875 d / T; pick T so the peak is the cruise speed.
     d = float(np.linalg.norm(pf - p0))
     T = max(1.5, 1.875 * d / speed)
@@ -140,15 +147,23 @@ class Guidance:
         self._mode, self._mode_t0, self._z_entry = mode, t, float(ego.p_WB[2])
         self._traj, self._route = None, None
         if mode is Mode.TAKEOFF:
-            self._traj = _rest_to_rest(t, ego.p_WB, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2)
+            self._traj = _rest_to_rest(
+                t, ego.p_WB, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2
+            )
         elif mode is Mode.EXPLORE:
             x0, x1, y0, y1 = cfg.search_area
             spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
             if cfg.search_pattern == "spiral":
-                waypoints = spiral_waypoints(x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, center_xy=p0[:2])
+                waypoints = spiral_waypoints(
+                    x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, center_xy=p0[:2]
+                )
             else:
-                waypoints = lawnmower_waypoints(x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, start_xy=p0[:2])
-            self._route = ExplorationRoute(waypoints, t0=t, p0=p0, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps)
+                waypoints = lawnmower_waypoints(
+                    x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, start_xy=p0[:2]
+                )
+            self._route = ExplorationRoute(
+                waypoints, t0=t, p0=p0, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps
+            )
         elif mode is Mode.TRACK:
             self.planner.reset()
         elif mode is Mode.ABORT:

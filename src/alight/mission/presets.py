@@ -34,7 +34,6 @@ from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
 from alight.planning.min_jerk import EndConstraint
 
-
 # The ego EKF's noise model: the data sheet of the vehicle's IMU and the VIO's reported accuracy. These
 # are the numbers the simulated sensors use by default (sim/sensors.py), as a real integrator would copy
 # them from the IMU data sheet and the VIO's calibration.
@@ -76,7 +75,9 @@ def _mission_config(s: object) -> MissionConfig:
     )
 
 
-def _flight_core(s: object, airframe: Airframe, fov_rad: float) -> tuple[Mission, Guidance, HighLevelController, EgoEkf]:
+def _flight_core(
+    s: object, airframe: Airframe, fov_rad: float
+) -> tuple[Mission, Guidance, HighLevelController, EgoEkf]:
     sc = s  # the Scenario; typed loosely to keep this module free of the scenario's import cycle
     mission = Mission(_mission_config(sc))
     p = sc.planner  # type: ignore[attr-defined]
@@ -87,7 +88,9 @@ def _flight_core(s: object, airframe: Airframe, fov_rad: float) -> tuple[Mission
             horizon_min_s=p.horizon_min_s,
             horizon_max_s=p.horizon_max_s,
             adopt_threshold_m=p.adopt_threshold_m,
-            end_constraint=EndConstraint.POS_VEL_ACC if p.end_acceleration == "platform" else EndConstraint.POS_VEL,
+            end_constraint=EndConstraint.POS_VEL_ACC
+            if p.end_acceleration == "platform"
+            else EndConstraint.POS_VEL,
         )
     )
     area = sc.search_area  # type: ignore[attr-defined]
@@ -165,7 +168,9 @@ def build_falanga2017(s: object, airframe: Airframe, rng: np.random.Generator) -
         guidance=guidance,
         controller=controller,
     )
-    return Preset("falanga2017", pipeline, mount, RateControllerGains(), uses_camera=True, camera=camera, pad=tag)
+    return Preset(
+        "falanga2017", pipeline, mount, RateControllerGains(), uses_camera=True, camera=camera, pad=tag
+    )
 
 
 PRESETS: dict[str, Callable[[object, Airframe, np.random.Generator], Preset]] = {

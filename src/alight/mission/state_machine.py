@@ -210,11 +210,17 @@ class Mission:
                 self._go(t, Mode.LANDED, "range below the motor cut-off")
             elif over_budget:
                 self._go(t, Mode.ABORT, "time budget spent")
-            elif target is None or (age > cfg.land_lost_timeout_s and (height is None or height > cfg.land_commit_height_m)):
+            elif target is None or (
+                age > cfg.land_lost_timeout_s and (height is None or height > cfg.land_commit_height_m)
+            ):
                 self._go_around(t, "target lost during the descent")
             else:
                 dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
-                if dp > cfg.land_abort_offset_m and height is not None and height > cfg.land_abort_min_height_m:
+                if (
+                    dp > cfg.land_abort_offset_m
+                    and height is not None
+                    and height > cfg.land_abort_min_height_m
+                ):
                     self._go_around(t, "off the pad during the descent")
 
         elif mode is Mode.GO_AROUND:
