@@ -53,6 +53,10 @@ Alg. 1 of the paper, step by step, and how each step is done here (numbers measu
    quad's homography and refined by ``cv2.cornerSubPix``; RANSAC homography over the 12; detected when the
    4 inner corners and at least 8 in all are inliers.
 6. Else the 4 refined corners of the quad.
+7. *Our extension, not in the paper*: when no quad is accepted, the cross alone
+   (:mod:`alight.perception.falanga_close`, kinds ``cross`` and ``cross_close``), because the white square
+   leaves the downward camera's view below ~1.5 m above the pad and Alg. 1 would go blind for the last
+   part of the landing. Off with ``close_range=False``.
 
 RANSAC (step 4, 5) is a numba implementation: 4-point minimal samples from a fixed-seed xorshift
 generator (a detection stays a pure function of the image), adaptive iteration count for 99.5 %
@@ -79,6 +83,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from alight.pads.falanga_tag import FalangaTag
+from alight.perception.falanga_close import CloseRangeCrossDetector
 from alight.types import FloatArray, Observation
 
 U8Array = NDArray[np.uint8]
@@ -130,6 +135,10 @@ class FalangaDetectorConfig:
     """Least brightness step across an edge (grey levels) for an edge search to count."""
     min_feature_px: float = 2.5
     """The ring (cross) is searched only when its width (bar width) is at least this in the image (px)."""
+    close_range: bool = True
+    """When no tag quad is found, look for the cross alone (:mod:`alight.perception.falanga_close`, our
+    extension of Alg. 1 for the last ~1.5 m of a landing, where the white square no longer fits in the
+    view). False gives the paper's Alg. 1 only."""
 
     def __post_init__(self) -> None:
         checks = {
@@ -1152,22 +1161,25 @@ class FalangaTagDetector:
             np.float64
         )
         self._cross_xy = np.ascontiguousarray(self._cross_P[:, :2])
+        # our close-range extension, run only when Alg. 1 finds no quad (see falanga_close.py)
+        self._close = CloseRangeCrossDetector(t) if self.config.close_range else None
 
     # ------------------------------------------------------------------------------------ public API
 
     def detect(self, image: object, t: float) -> list[Observation]:
         """Observations of the tag in ``image`` (grey or BGR uint8 of any size) captured at ``t`` (s): at
         most one; ``[]`` when there is no tag or the image is unusable (empty, tiny, not an image)."""
-        return self._run(image, t, None)
+        return self._run(image, t, None) or self._run_close(image, t)
 
     def detect_timed(self, image: object, t: float) -> tuple[list[Observation], dict[str, float]]:
         """As :meth:`detect`, plus the wall time of each stage (ms) keyed by :data:`STAGES` and ``total``:
         ``threshold`` (grey conversion, downscale, adaptive threshold and run labelling), ``contours``
         (component shape scores, contour tracing and polygon fits), ``quad`` (corner refinement), ``inner``
-        (pattern check, ring edges, cross corners) and ``ransac`` (the RANSAC homographies)."""
+        (pattern check, ring edges, cross corners) and ``ransac`` (the RANSAC homographies). The close-range
+        stage (when no quad was found) counts in ``total`` only: ``total`` minus the sum of the stages."""
         times = dict.fromkeys(STAGES, 0.0)
         t0 = time.perf_counter()
-        obs = self._run(image, t, times)
+        obs = self._run(image, t, times) or self._run_close(image, t)
         times["total"] = (time.perf_counter() - t0) * 1e3
         return obs, times
 
@@ -1235,6 +1247,15 @@ class FalangaTagDetector:
             if tried >= cfg.max_candidates:
                 break
         return []
+
+    def _run_close(self, image: object, t: float) -> list[Observation]:
+        """The close-range stage (our extension of Alg. 1, :mod:`alight.perception.falanga_close`): the cross
+        alone, for frames where :meth:`_run` found no quad."""
+        if self._close is None:
+            return []
+        gray = as_gray_u8(image)
+        obs = None if gray is None or min(gray.shape) < 16 else self._close.detect(gray, t)
+        return [] if obs is None else [obs]
 
     def _verify(
         self, gray: U8Array, q_small: FloatArray, f: int, t: float, times: dict[str, float] | None
