@@ -123,6 +123,9 @@ class MissionSpec(_Strict):
     track_height_m: PositiveFloat = 2.5
     land_speed_mps: PositiveFloat = 0.4
     motor_cutoff_range_m: PositiveFloat = 0.03
+    land_commit_height_m: PositiveFloat = 0.6
+    """Below this height above the pad a lost target no longer aborts the descent (m): the camera sees
+    the tag's cross down to about 0.3 m, but a moving pad may leave the view in the last half metre."""
     lost_timeout_s: PositiveFloat = 3.0
     max_go_arounds: Annotated[int, Field(ge=0)] = 3
     time_budget_s: PositiveFloat | None = None

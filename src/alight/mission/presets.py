@@ -69,6 +69,7 @@ def _mission_config(s: object) -> MissionConfig:
         track_height_m=m.track_height_m,
         land_speed_mps=m.land_speed_mps,
         motor_cutoff_range_m=m.motor_cutoff_range_m,
+        land_commit_height_m=m.land_commit_height_m,
         lost_timeout_s=m.lost_timeout_s,
         max_go_arounds=m.max_go_arounds,
         time_budget_s=m.time_budget_s,
