@@ -57,6 +57,21 @@ def test_groundtruth_mission_lands(path: str, speed: float, seed: int) -> None:
     assert modes[0] == "takeoff" and modes[-1] == "landed" and "land" in modes
 
 
+# falanga2017 end to end (rendered camera, tag detector, PnP): one seed per paper condition.
+VISION_CONDITIONS = [("straight", 1.2, 1), ("circle", 2.0, 2), ("figure8", 4.2, 3)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("path", "speed", "seed"), VISION_CONDITIONS)
+def test_falanga2017_mission_lands_on_vision_alone(path: str, speed: float, seed: int) -> None:
+    s = scenario_from_dict({"preset": "falanga2017", "seed": seed, "platform": {"path": path, "speed_mps": speed}})
+    r = run_mission(s, record=False).result
+    assert r["outcome"] == "landed", r["mode_history"]
+    assert r["touchdown_error_m"] < 0.2
+    assert r["detections"] > 50  # measurements came from the rendered images, through PnP
+    assert r["time_first_detection_s"] < r["time_landing_start_s"] < r["time_to_land_s"]
+
+
 @pytest.mark.slow
 def test_same_seed_same_mission_and_seeds_differ() -> None:
     base = {"preset": "groundtruth", "duration_s": 30.0, "platform": {"path": "circle", "speed_mps": 2.0}}
