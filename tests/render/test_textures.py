@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from alight.pads import AprilTagPad, FalangaTag
+from alight.sim import textures
 from alight.sim.textures import (
     GROUND_KINDS,
     GroundTexture,
@@ -49,7 +50,9 @@ def test_ground_textures_tile_and_are_deterministic(kind: str) -> None:
     assert 0.7 < _seam_ratio(g.image) < 1.3
     # a texture that is not periodic has a seam far rougher than its interior: the measure can fail
     assert _seam_ratio(np.tile(np.linspace(0, 255, 512, dtype=np.uint8), (512, 1))) > 100
+    textures._GROUND_CACHE.clear()  # drawn again, not read from the cache
     again = make_ground_texture(kind, np.random.default_rng(4), size_px=512, m_per_px=0.03)
+    assert again is not g
     np.testing.assert_array_equal(g.image, again.image)
     other = make_ground_texture(kind, np.random.default_rng(5), size_px=512, m_per_px=0.03)
     assert np.any(other.image != g.image)

@@ -3,9 +3,10 @@ top (the plane z = p_WP[2]).
 
 How a frame is made (all per-pixel work in numba kernels or OpenCV, nothing per pixel in Python):
 
-1. Once per camera (cached per camera object), every pixel's ray in C is unprojected through the camera
-   model (any :class:`alight.cameras.CameraModel`, so lens distortion, or a fisheye model, is exact) and
-   stored as float32 planes; a second set holds the rays of a half-resolution grid.
+1. Once per camera, every pixel's ray in C is unprojected through the camera model (any
+   :class:`alight.cameras.CameraModel`, so lens distortion, or a fisheye model, is exact) and stored as
+   float32 planes; a second set holds the rays of a half-resolution grid. They are cached by the camera's
+   parameters, so the new camera object of every mission reuses them (unprojecting costs ~0.1 s).
 2. Per frame the ray-plane intersection with texture lookup is a homography on the ray,
    ``(u, v, w) = M d_C`` with ``M = T N R`` (texture scale/offset T, plane intersection N, rotation R into
    the plane's frame). A vectorised numba kernel evaluates it for every pixel into float32 maps, and
@@ -35,6 +36,8 @@ instance per thread.
 
 from __future__ import annotations
 
+import collections
+import dataclasses
 import functools
 import math
 import weakref
@@ -287,17 +290,71 @@ def _planes(rays: FloatArray, shape: tuple[int, int]) -> tuple[NDArray[np.float3
     return tuple(np.ascontiguousarray(r[:, k].reshape(shape)) for k in range(3))
 
 
-_RAY_CACHE: weakref.WeakKeyDictionary[object, tuple] = weakref.WeakKeyDictionary()  # type: ignore[type-arg]
+_RAY_CACHE_SIZE = 4
+_RAY_CACHE: collections.OrderedDict[object, tuple] = collections.OrderedDict()  # type: ignore[type-arg]
+"""Rays by camera parameters (:func:`_camera_key`), least recently used first. Bounded: one entry is
+~5.4 MB for a 752 x 480 camera."""
+_RAY_CACHE_BY_ID: weakref.WeakKeyDictionary[object, dict] = weakref.WeakKeyDictionary()  # type: ignore[type-arg]
+"""Rays of camera objects that have no parameter key (not frozen dataclasses), by object."""
+
+
+def _freeze(value: object) -> object:
+    """A hashable stand-in for a camera parameter that equals another exactly when the values do."""
+    if isinstance(value, np.ndarray):
+        return ("ndarray", value.dtype.str, value.shape, value.tobytes())
+    if isinstance(value, (tuple, list)):
+        return (type(value).__name__, tuple(_freeze(v) for v in value))
+    hash(value)  # TypeError for anything else that is not hashable
+    return value
+
+
+def _camera_key(camera: object) -> object | None:
+    """The camera's type and constructor parameters when it is a frozen dataclass (the camera models of
+    :mod:`alight.cameras` are): two such cameras with equal parameters have equal rays, so every mission's
+    new ``PinholeCamera.default_downward()`` shares one entry. None for anything else."""
+    params = getattr(type(camera), "__dataclass_params__", None)
+    if params is None or not params.frozen:
+        return None
+    try:
+        return (
+            type(camera).__module__,
+            type(camera).__qualname__,
+            tuple((f.name, _freeze(getattr(camera, f.name))) for f in dataclasses.fields(camera) if f.init),  # type: ignore[arg-type]
+        )
+    except TypeError:
+        return None
 
 
 def _camera_rays(camera: CameraModel, pyrup: bool) -> tuple:  # type: ignore[type-arg]
     """Unit rays of every pixel (three (H, W) float32 planes), of the half-resolution grid (three flat
-    planes) and the angle between neighbouring pixels at the image centre (rad). Cached per camera
-    object (the models are immutable); unprojecting 360 k pixels costs ~0.1 s."""
+    planes) and the angle between neighbouring pixels at the image centre (rad). Unprojecting 360 k
+    pixels costs ~0.1 s, more than a few seconds of simulated flight, so the rays are cached by the
+    camera's parameters (bounded, least recently used out) or, for a camera that has no parameter key,
+    by the camera object."""
+    key = _camera_key(camera)
     try:
-        return _RAY_CACHE[camera][pyrup]  # type: ignore[no-any-return]
+        if key is not None:
+            out = _RAY_CACHE[(key, pyrup)]
+            _RAY_CACHE.move_to_end((key, pyrup))
+            return out  # type: ignore[no-any-return]
+        return _RAY_CACHE_BY_ID[camera][pyrup]  # type: ignore[no-any-return]
     except (KeyError, TypeError):
         pass
+    out = _unproject_grid(camera, pyrup)
+    if key is not None:
+        _RAY_CACHE[(key, pyrup)] = out
+        while len(_RAY_CACHE) > _RAY_CACHE_SIZE:
+            _RAY_CACHE.popitem(last=False)
+    else:
+        try:
+            _RAY_CACHE_BY_ID.setdefault(camera, {})[pyrup] = out
+        except TypeError:
+            pass  # a camera object that cannot be weakly referenced: no caching
+    return out
+
+
+def _unproject_grid(camera: CameraModel, pyrup: bool) -> tuple:  # type: ignore[type-arg]
+    """The rays of :func:`_camera_rays`, computed."""
     W, H = int(camera.width), int(camera.height)
     v, u = np.mgrid[0:H, 0:W]
     uv = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
@@ -318,12 +375,7 @@ def _camera_rays(camera: CameraModel, pyrup: bool) -> tuple:  # type: ignore[typ
         raise ValueError("the camera has no valid ray at the image centre")
     for a in (rx, ry, rz, hx, hy, hz):
         a.setflags(write=False)
-    out = (rx, ry, rz, hx, hy, hz, pixel_angle)
-    try:
-        _RAY_CACHE.setdefault(camera, {})[pyrup] = out
-    except TypeError:
-        pass  # a camera object that cannot be weakly referenced: no caching
-    return out
+    return (rx, ry, rz, hx, hy, hz, pixel_angle)
 
 
 @dataclass
@@ -368,7 +420,7 @@ class Renderer:
         W, H = int(camera.width), int(camera.height)
         self.width, self.height = W, H
 
-        # 1. per-pixel rays, full and half resolution (cached per camera object)
+        # 1. per-pixel rays, full and half resolution (cached by the camera's parameters)
         self._pyrup = H % 2 == 0 and W % 2 == 0
         rays = _camera_rays(camera, self._pyrup)
         self._rx, self._ry, self._rz, self._hx, self._hy, self._hz, self._pixel_angle = rays

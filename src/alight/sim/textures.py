@@ -10,8 +10,10 @@ blurred), so the renderer samples them with wrap-around and the seam is invisibl
 
 from __future__ import annotations
 
+import collections
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -129,6 +131,23 @@ def _to_u8(img: NDArray[np.float32]) -> NDArray[np.uint8]:
 # --------------------------------------------------------------------------------------------------
 
 
+_GROUND_CACHE_SIZE = 4
+_GROUND_CACHE: collections.OrderedDict[object, tuple[GroundTexture, dict[str, Any]]]
+_GROUND_CACHE = collections.OrderedDict()
+"""Ground textures by (kind, size, texel, generator state before), with the generator state after;
+least recently used first. One entry is ~1 MB for the default tile."""
+
+
+def _freeze_state(value: object) -> object:
+    """A hashable copy of a bit generator's state (nested dicts of ints, strings and arrays)."""
+    if isinstance(value, dict):
+        return tuple((k, _freeze_state(v)) for k, v in sorted(value.items()))
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.shape, value.tobytes())
+    hash(value)  # TypeError for anything else that is not hashable
+    return value
+
+
 def make_ground_texture(
     kind: str, rng: np.random.Generator, size_px: int = 1024, m_per_px: float = 0.02
 ) -> GroundTexture:
@@ -137,7 +156,31 @@ def make_ground_texture(
     ``kind``: ``grass`` (mid-dark, strong fine texture with patches), ``asphalt`` (dark, fine grain and
     faint stains), ``concrete`` (light, slabs with dark joints every ``size_px / 8`` texels, stains and
     grain). ``size_px`` (a power of two) texels of ``m_per_px`` metres: the default tile is 20.48 m.
+
+    Making a tile costs ~60-100 ms, so the last few are cached by their arguments and the generator's
+    state: a generator in a state seen before (a scenario seed flown again, with other settings) gets the
+    same (immutable) texture and is left in the state that drawing it would leave, so what it draws
+    afterwards is unchanged too.
     """
+    try:
+        key: object = (kind, int(size_px), float(m_per_px), _freeze_state(rng.bit_generator.state))
+    except (AttributeError, TypeError):
+        key = None  # not a numpy Generator with a readable state: no caching
+    if key is not None:
+        hit = _GROUND_CACHE.get(key)
+        if hit is not None:
+            _GROUND_CACHE.move_to_end(key)
+            rng.bit_generator.state = hit[1]
+            return hit[0]
+    tex = _make_ground_texture(kind, rng, size_px, m_per_px)
+    if key is not None:
+        _GROUND_CACHE[key] = (tex, rng.bit_generator.state)
+        while len(_GROUND_CACHE) > _GROUND_CACHE_SIZE:
+            _GROUND_CACHE.popitem(last=False)
+    return tex
+
+
+def _make_ground_texture(kind: str, rng: np.random.Generator, size_px: int, m_per_px: float) -> GroundTexture:
     n = int(size_px)
     if kind == "grass":
         patches = fractal_noise(rng, n, base_cells=8, persistence=0.55)
