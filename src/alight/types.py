@@ -299,6 +299,31 @@ class Reference:
         for name in ("p", "v", "a", "j"):
             object.__setattr__(self, name, _frozen(getattr(self, name), (3,), name))
 
+    @classmethod
+    def trusted(
+        cls,
+        t: float,
+        p: FloatArray,
+        v: FloatArray,
+        a: FloatArray,
+        j: FloatArray,
+        yaw: float = 0.0,
+        yaw_rate: float = 0.0,
+    ) -> Reference:
+        """Construct without validation, for producers that guarantee finite float64 (3,) arrays (the
+        guidance at the controller's rate). The arrays are copied and made read-only."""
+        self = object.__new__(cls)
+        setattr_ = object.__setattr__
+        setattr_(self, "t", float(t))
+        for name, value in (("p", p), ("v", v), ("a", a), ("j", j)):
+            if value.flags.writeable or not value.flags.owndata:
+                value = value.copy()
+                value.flags.writeable = False
+            setattr_(self, name, value)
+        setattr_(self, "yaw", float(yaw))
+        setattr_(self, "yaw_rate", float(yaw_rate))
+        return self
+
 
 @dataclass(frozen=True, slots=True)
 class Command:

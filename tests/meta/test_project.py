@@ -90,3 +90,18 @@ def test_test_file_names_are_unique() -> None:
     # same name in different folders break collection on a fresh checkout.
     names = [p.name for p in (ROOT / "tests").rglob("test_*.py")]
     assert len(names) == len(set(names)), sorted(n for n in names if names.count(n) > 1)
+
+
+def test_trusted_reference_matches_the_checked_one() -> None:
+    import numpy as np
+
+    from alight.types import Reference
+
+    p, v, a, j = np.arange(3.0), np.ones(3), np.zeros(3), np.full(3, 2.0)
+    checked = Reference(0.5, p, v, a, j, 0.1, 0.2)
+    fast = Reference.trusted(0.5, p, v, a, j, 0.1, 0.2)
+    for name in ("p", "v", "a", "j"):
+        np.testing.assert_array_equal(getattr(checked, name), getattr(fast, name))
+        assert not getattr(fast, name).flags.writeable
+    p[0] = 99.0
+    assert fast.p[0] == 0.0 and (fast.yaw, fast.yaw_rate) == (checked.yaw, checked.yaw_rate)

@@ -13,7 +13,8 @@ import numpy as np
 from numba import njit
 
 from alight.control.mixer import low_level
-from alight.sim.quadrotor import IX_W, rest_on_surface, step
+from alight.sim.quadrotor import IX_Q, IX_V, IX_W, rest_on_surface, step
+from alight.sim.sensors import imu_sample_kernel
 from alight.types import FloatArray
 
 
@@ -51,3 +52,57 @@ def advance(
         if supported:
             y = rest_on_surface(y, support_z, support_v_W, gear_height)
     return y
+
+
+# Layout of the per-tick input vector of :func:`tick` (the runner updates it in place).
+IN_THRUST = 0  # collective thrust command (N)
+IN_W_CMD = 1  # body-rate command (rad/s), [1:4]
+IN_MOTORS_ON = 4  # 1.0 while the motors run
+IN_SUPPORTED = 5  # 1.0 while a surface holds the vehicle up
+IN_SUPPORT_Z = 6  # that surface's height (m)
+IN_SUPPORT_V = 7  # its velocity in W (m/s), [7:10]
+IN_F_EXT = 10  # external (wind) force in W (N), [10:13]
+IN_V_WIND = 13  # air velocity in W (m/s), [13:16]
+N_IN = 16
+
+
+@njit(cache=True)
+def tick(
+    x: FloatArray,
+    inputs: FloatArray,
+    sim_params: FloatArray,
+    ll_params: FloatArray,
+    imu_bias: FloatArray,
+    imu_noise: FloatArray,
+    imu_scale: FloatArray,
+    dt: float,
+    n: int,
+    gear_height: float,
+) -> tuple[FloatArray, FloatArray]:
+    """One IMU period: :func:`advance` with the inputs packed in ``inputs`` (layout ``IN_*``), then one
+    IMU sample at the end of the interval. Returns the new state and the stacked (specific force in B,
+    body rate in B) (6,). The IMU sees the mean acceleration over the interval (its anti-aliasing filter),
+    the attitude and body rates at its end. Few arguments and one compiled call per 200 Hz tick: numba's
+    per-argument dispatch cost, not the arithmetic, is what this loop spends its time on."""
+    y = advance(
+        x,
+        inputs[IN_THRUST],
+        inputs[IN_W_CMD : IN_W_CMD + 3],
+        inputs[IN_MOTORS_ON] > 0.5,
+        inputs[IN_F_EXT : IN_F_EXT + 3],
+        inputs[IN_V_WIND : IN_V_WIND + 3],
+        sim_params,
+        ll_params,
+        dt,
+        n,
+        inputs[IN_SUPPORT_Z],
+        inputs[IN_SUPPORT_V : IN_SUPPORT_V + 3],
+        gear_height,
+        inputs[IN_SUPPORTED] > 0.5,
+    )
+    a = np.empty(3)
+    span = dt * n
+    for k in range(3):
+        a[k] = (y[IX_V + k] - x[IX_V + k]) / span
+    imu = imu_sample_kernel(a, y[IX_Q : IX_Q + 4], y[IX_W : IX_W + 3], imu_bias, imu_noise, imu_scale)
+    return y, imu

@@ -25,7 +25,18 @@ from alight.cameras.pinhole import camera_pose_W
 from alight.control.rate import pack_low_level_params
 from alight.energy import flight_energy_J
 from alight.evaluation.log import MissionLog
-from alight.evaluation.physics import advance
+from alight.evaluation.physics import (
+    IN_F_EXT,
+    IN_MOTORS_ON,
+    IN_SUPPORT_V,
+    IN_SUPPORT_Z,
+    IN_SUPPORTED,
+    IN_THRUST,
+    IN_V_WIND,
+    IN_W_CMD,
+    N_IN,
+    tick,
+)
 from alight.mission.presets import build_preset
 from alight.scenario import Scenario
 from alight.sim.platform import Platform, PlatformConfig
@@ -191,6 +202,8 @@ def run_mission(
     t_contact: float | None = None
     supported = True  # standing on the ground before take-off
     support_z, support_v = 0.0, zero3
+    inputs = np.zeros(N_IN)  # what the compiled tick reads; updated in place when something changes
+    inputs[IN_SUPPORTED] = 1.0
     airborne = False
     t_abort: float | None = None
     outcome: Outcome | None = None
@@ -211,29 +224,18 @@ def run_mission(
         if not windless:
             f_wind = wind.force_W(t, x[SL_P], x[SL_V])
             v_air = wind.air_velocity_W(t)
-        v_before = x[SL_V].copy()
-        x = advance(
-            x,
-            thrust_N,
-            w_cmd,
-            motors_on,
-            f_wind,
-            v_air,
-            sim_params,
-            ll_params,
-            PHYSICS_DT,
-            n_sub,
-            support_z,
-            support_v,
-            gear,
-            supported,
+            inputs[IN_F_EXT : IN_F_EXT + 3] = f_wind
+            inputs[IN_V_WIND : IN_V_WIND + 3] = v_air
+        imu_bias, imu_noise, imu_scale = imu.kernel_inputs()
+        x, imu_out = tick(
+            x, inputs, sim_params, ll_params, imu_bias, imu_noise, imu_scale, PHYSICS_DT, n_sub, gear
         )
         t = k * TICK_DT
         p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]
-        a_WB = (v_WB - v_before) * (1.0 / TICK_DT)  # mean acceleration over the tick, what an IMU sees
 
         if not airborne and p_WB[2] - gear > 0.05:
             airborne, supported = True, False
+            inputs[IN_SUPPORTED] = 0.0
         truth = None
         if airborne and contact is None and p_WB[2] <= low_z:
             truth = truths.at(k)
@@ -249,20 +251,22 @@ def run_mission(
             support_v = truth.v_WP.copy()
             support_z = float(truth.p_WP[2])
             motors_on = False
+            inputs[IN_SUPPORTED] = 1.0
+            inputs[IN_SUPPORT_Z] = support_z
+            inputs[IN_SUPPORT_V : IN_SUPPORT_V + 3] = support_v
+            inputs[IN_MOTORS_ON] = 0.0
         if t_contact is not None and t - t_contact >= POST_CONTACT_S:
             break
 
         # -- sensors into the pipeline ------------------------------------------------------------------
-        f_B, g_B = imu.measure(a_WB, q_WB, w_WB_B)
-        pipeline.on_imu(t, f_B, g_B)
+        pipeline.on_imu(t, imu_out[0:3], imu_out[3:6])
         if k % every_odometry == 0:
             odo = odometry.measure(t, p_WB, v_WB, q_WB, w_WB_B)
             pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB)
         if not pipeline.ego_estimator.initialized:
             continue
         if k % every_range == 0:
-            truth = truth or truths.at(k)
-            r = rangefinder.measure(p_WB, q_WB, truth, pad)
+            r = rangefinder.measure_at(p_WB, q_WB, truth_p[k], float(truths.yaw[k]), pad)
             pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
         if t + 1e-9 >= next_capture:
             # An image (or the truth sensor's report) is taken now and reaches the pipeline after the
@@ -295,6 +299,9 @@ def run_mission(
             thrust_N, w_cmd, motors_on = cmd.thrust_N, cmd.w_WB_B_cmd, not cmd.motors_off
             if contact is not None:
                 motors_on = False
+            inputs[IN_THRUST] = thrust_N
+            inputs[IN_W_CMD : IN_W_CMD + 3] = w_cmd
+            inputs[IN_MOTORS_ON] = 1.0 if motors_on else 0.0
         if t_abort is not None and t - t_abort >= ABORT_HOLD_S and contact is None:
             outcome = Outcome.ABORTED
             break

@@ -231,16 +231,16 @@ class Guidance:
             p = np.array([target.p_WP[0], target.p_WP[1], z])
             v = np.array([target.v_WP[0], target.v_WP[1], vz])
             a = np.array([target.a_WP[0], target.a_WP[1], 0.0])
-            ref = Reference(t, p, v, a, _platform_jerk(target), cfg.yaw, 0.0)
+            ref = Reference.trusted(t, p, v, a, _platform_jerk(target), cfg.yaw, 0.0)
         elif self._route is not None and mode is Mode.EXPLORE:
             p, v, a, j = self._route.reference(t)
-            ref = Reference(t, p, v, a, j, cfg.yaw, 0.0)
+            ref = Reference.trusted(t, p, v, a, j, cfg.yaw, 0.0)
         elif self._traj is not None:
             p, v, a, j = self._traj.sample(t)
-            ref = Reference(t, p, v, a, j, cfg.yaw, 0.0)
+            ref = Reference.trusted(t, p, v, a, j, cfg.yaw, 0.0)
         elif self._last_ref is not None:
             r = self._last_ref
-            ref = Reference(t, r.p, _ZERO3, _ZERO3, _ZERO3, cfg.yaw, 0.0)
+            ref = Reference.trusted(t, r.p, _ZERO3, _ZERO3, _ZERO3, cfg.yaw, 0.0)
         else:
             raise RuntimeError("guidance.reference called before update")
         self._last_ref = ref

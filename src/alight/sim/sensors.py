@@ -118,6 +118,10 @@ def _imu_sample(
     return out
 
 
+imu_sample_kernel = _imu_sample
+"""The IMU model as a numba function, for compiled loops (see :meth:`Imu.kernel_inputs`)."""
+
+
 @dataclass(frozen=True, kw_only=True)
 class ImuConfig:
     """A consumer MEMS IMU (orders of magnitude of the Bosch BMI088 / TDK ICM-42688 / MPU-6000 data
@@ -205,6 +209,12 @@ class Imu:
         rad/s); the biases then take one random-walk step."""
         out = _imu_sample(_f64(a_WB), _f64(q_WB), _f64(w_WB_B), self._bias, self._stream.row(), self._scale)
         return out[0:3], out[3:6]
+
+    def kernel_inputs(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """For a caller that samples the IMU inside its own compiled loop with :func:`imu_sample_kernel`:
+        the bias vector (6,) that the kernel steps in place, the next noise row (12,) and the scales
+        (12,). One call per sample; the same numbers as :meth:`measure`."""
+        return self._bias, self._stream.row(), self._scale
 
     def measure_many(
         self, a_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray
@@ -456,7 +466,14 @@ class RangeFinder:
         self, p_WB: FloatArray, q_WB: FloatArray, platform: PlatformTruth, pad_size_m: float
     ) -> float:
         """One reading (m) from the truth p_WB (3,), q_WB (4,), the platform's state and pad side (m)."""
-        r = self.true_range(p_WB, q_WB, platform, pad_size_m)
+        return self.measure_at(p_WB, q_WB, platform.p_WP, platform.yaw, pad_size_m)
+
+    def measure_at(
+        self, p_WB: FloatArray, q_WB: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
+    ) -> float:
+        """As :meth:`measure`, with the pad centre ``p_WP`` (3,) and heading ``yaw`` given directly (for a
+        caller that holds the platform's states as arrays)."""
+        r = _true_range(_f64(p_WB), _f64(q_WB), self._origin_B, _f64(p_WP), float(yaw), pad_size_m)
         noise = float(self._stream.row()[0]) * self.config.noise_std_m
         if r > self.config.max_range_m:
             return math.inf
