@@ -441,3 +441,26 @@ def test_update_matches_the_information_form(with_velocity: bool) -> None:
     assert np.allclose(ekf.covariance, P_post, atol=1e-12)
     assert np.allclose(boxminus(ekf.nominal, x), dx, atol=1e-12)
     assert ekf.last_nis == pytest.approx(r @ np.linalg.solve(H @ P @ H.T + R, r))
+
+
+def test_predict_imu_many_equals_one_call_per_sample() -> None:
+    rng = np.random.default_rng(3)
+    a, b = EgoEkf(), EgoEkf()
+    q0 = np.array([0.0, 0.0, 0.0, 1.0])
+    for f in (a, b):
+        f.initialize(0.0, np.zeros(3), np.zeros(3), q0)
+    ts = 0.005 * np.arange(1, 41)
+    fs = np.array([0.0, 0.0, 9.81]) + 0.3 * rng.standard_normal((40, 3))
+    ws = 0.2 * rng.standard_normal((40, 3))
+    for t, f_B, w_B in zip(ts, fs, ws, strict=True):
+        a.predict_imu(t, f_B, w_B)
+    b.predict_imu_many(ts[:25], fs[:25], ws[:25])
+    b.predict_imu_many(ts[25:], fs[25:], ws[25:])
+    np.testing.assert_array_equal(a.nominal, b.nominal)
+    np.testing.assert_array_equal(a.covariance, b.covariance)
+    assert a.t == b.t
+    bad = fs[:3].copy()
+    bad[1, 0] = np.nan
+    with pytest.raises(EstimationError):
+        b.predict_imu_many(ts[-1] + 0.005 * np.arange(1, 4), bad, ws[:3])
+    assert b.t == ts[-1] + 0.005  # the sample before the bad one was applied, nothing after

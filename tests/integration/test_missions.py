@@ -64,7 +64,9 @@ VISION_CONDITIONS = [("straight", 1.2, 1), ("circle", 2.0, 2), ("figure8", 4.2, 
 @pytest.mark.slow
 @pytest.mark.parametrize(("path", "speed", "seed"), VISION_CONDITIONS)
 def test_falanga2017_mission_lands_on_vision_alone(path: str, speed: float, seed: int) -> None:
-    s = scenario_from_dict({"preset": "falanga2017", "seed": seed, "platform": {"path": path, "speed_mps": speed}})
+    s = scenario_from_dict(
+        {"preset": "falanga2017", "seed": seed, "platform": {"path": path, "speed_mps": speed}}
+    )
     r = run_mission(s, record=False).result
     assert r["outcome"] == "landed", r["mode_history"]
     assert r["touchdown_error_m"] < 0.2

@@ -74,6 +74,12 @@ class EgoEstimator(Protocol):
         """Propagate with one IMU sample: specific force (m/s^2) and rate (rad/s) in B."""
         ...
 
+    def predict_imu_many(
+        self, ts: FloatArray, f_B: FloatArray, w_B: FloatArray, n: int | None = None
+    ) -> None:
+        """As ``n`` calls of ``predict_imu``: times (n,), forces and rates (n, 3)."""
+        ...
+
     def update_odometry(
         self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
     ) -> bool: ...

@@ -413,6 +413,34 @@ def ego_predict_kernel(
     return OK
 
 
+@njit(cache=True)
+def ego_predict_many_kernel(
+    x: FloatArray,
+    P: FloatArray,
+    imu: FloatArray,
+    params: FloatArray,
+    t0: float,
+    ts: FloatArray,
+    fs: FloatArray,
+    ws: FloatArray,
+    n: int,
+    max_step: float,
+) -> int:
+    """:func:`ego_predict_kernel` over the first ``n`` samples ``ts`` (s), ``fs``, ``ws`` ((n, 3) each)
+    from the filter time ``t0``, in one compiled call. Returns the index of the first sample that failed
+    (its status is not OK), or -1 when all went through; samples before it were applied."""
+    t = t0
+    for k in range(n):
+        for i in range(3):
+            imu[6 + i] = fs[k, i]
+            imu[9 + i] = ws[k, i]
+        status = ego_predict_kernel(x, P, imu, params, ts[k] - t, max_step)
+        if status != OK:
+            return k
+        t = ts[k]
+    return -1
+
+
 # --------------------------------------------------------------------------------------------------
 # Odometry update
 # --------------------------------------------------------------------------------------------------
@@ -790,6 +818,33 @@ class EgoEkf:
         self._has_imu = True
         self._t = float(t)
         self._state_cache = None
+
+    def predict_imu_many(
+        self, ts: FloatArray, f_B: FloatArray, w_B: FloatArray, n: int | None = None
+    ) -> None:
+        """As ``n`` calls of :meth:`predict_imu` (same arithmetic) in one compiled call: times ``ts``
+        (n,), specific forces ``f_B`` and rates ``w_B`` (n, 3). For drivers that buffer a 200 Hz IMU
+        stream and hand it over when the estimate is needed."""
+        if not self._initialized:
+            raise EstimationError("EgoEkf.predict_imu_many called before initialize")
+        n = len(ts) if n is None else int(n)
+        if n == 0:
+            return
+        if not (ts[0] >= self._t and np.all(np.diff(ts[:n]) >= 0.0)):
+            raise EstimationError(f"EgoEkf.predict_imu_many: times must be in order and >= {self._t}")
+        if not self._has_imu:
+            self._imu[0:3] = f_B[0]
+            self._imu[3:6] = w_B[0]
+        bad = ego_predict_many_kernel(
+            self._x, self._P, self._imu, self._params, self._t, ts, f_B, w_B, n, self.config.max_step
+        )
+        done = n if bad < 0 else bad
+        if done > 0:
+            self._has_imu = True
+            self._t = float(ts[done - 1])
+            self._state_cache = None
+        if bad >= 0:
+            raise EstimationError(f"EgoEkf.predict_imu_many: non-finite IMU sample at t={ts[bad]}")
 
     def update_odometry(
         self,
