@@ -464,3 +464,13 @@ def test_predict_imu_many_equals_one_call_per_sample() -> None:
     with pytest.raises(EstimationError):
         b.predict_imu_many(ts[-1] + 0.005 * np.arange(1, 4), bad, ws[:3])
     assert b.t == ts[-1] + 0.005  # the sample before the bad one was applied, nothing after
+
+
+def test_predict_imu_many_rejects_time_going_backwards() -> None:
+    f = EgoEkf()
+    f.initialize(0.0, np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    ts = np.array([0.005, 0.010, 0.007, 0.015])
+    fs = np.tile([0.0, 0.0, 9.81], (4, 1))
+    with pytest.raises(EstimationError, match="before the filter time"):
+        f.predict_imu_many(ts, fs, np.zeros((4, 3)))
+    assert f.t == 0.010  # the two good samples were applied

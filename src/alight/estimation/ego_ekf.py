@@ -427,10 +427,13 @@ def ego_predict_many_kernel(
     max_step: float,
 ) -> int:
     """:func:`ego_predict_kernel` over the first ``n`` samples ``ts`` (s), ``fs``, ``ws`` ((n, 3) each)
-    from the filter time ``t0``, in one compiled call. Returns the index of the first sample that failed
-    (its status is not OK), or -1 when all went through; samples before it were applied."""
+    from the filter time ``t0``, in one compiled call. Returns -1 when all went through; else the index
+    ``k`` of the first non-finite sample, or ``-(k + 2)`` when sample ``k`` is earlier than the one before
+    (or than ``t0``, or not finite in time); the samples before it were applied."""
     t = t0
     for k in range(n):
+        if not (ts[k] >= t):
+            return -(k + 2)
         for i in range(3):
             imu[6 + i] = fs[k, i]
             imu[9 + i] = ws[k, i]
@@ -830,21 +833,23 @@ class EgoEkf:
         n = len(ts) if n is None else int(n)
         if n == 0:
             return
-        if not (ts[0] >= self._t and np.all(np.diff(ts[:n]) >= 0.0)):
-            raise EstimationError(f"EgoEkf.predict_imu_many: times must be in order and >= {self._t}")
         if not self._has_imu:
             self._imu[0:3] = f_B[0]
             self._imu[3:6] = w_B[0]
         bad = ego_predict_many_kernel(
             self._x, self._P, self._imu, self._params, self._t, ts, f_B, w_B, n, self.config.max_step
         )
-        done = n if bad < 0 else bad
+        done = n if bad == -1 else (bad if bad >= 0 else -bad - 2)
         if done > 0:
             self._has_imu = True
             self._t = float(ts[done - 1])
             self._state_cache = None
         if bad >= 0:
             raise EstimationError(f"EgoEkf.predict_imu_many: non-finite IMU sample at t={ts[bad]}")
+        if bad < -1:
+            raise EstimationError(
+                f"EgoEkf.predict_imu_many: time {ts[done]} is before the filter time {self._t} or not finite"
+            )
 
     def update_odometry(
         self,
