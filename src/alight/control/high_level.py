@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit, types
 
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
+from alight.rotation_kernels import quat_to_R
 from alight.types import GRAVITY_MPS2, Command, EgoState, FloatArray, Reference
 
 __all__ = [
@@ -76,21 +77,6 @@ _FP_MAX_IT = 50  # contraction ~d|v|/c: ~10 iterations at 5 m/s, ~30 at 12 m/s
 # --------------------------------------------------------------------------------------------------
 # numba kernels
 # --------------------------------------------------------------------------------------------------
-
-
-@njit(cache=True)
-def _quat_to_rotmat(q: FloatArray, R: FloatArray) -> None:
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    x, y, z, w = q[0] / n, q[1] / n, q[2] / n, q[3] / n
-    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    R[0, 1] = 2.0 * (x * y - z * w)
-    R[0, 2] = 2.0 * (x * z + y * w)
-    R[1, 0] = 2.0 * (x * y + z * w)
-    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    R[1, 2] = 2.0 * (y * z - x * w)
-    R[2, 0] = 2.0 * (x * z - y * w)
-    R[2, 1] = 2.0 * (y * z + x * w)
-    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
 @njit(cache=True)
@@ -289,7 +275,7 @@ def high_level_kernel(
     R_des = np.empty((3, 3))
     f_ref = np.empty(3)
     w_ref = np.empty(3)
-    _quat_to_rotmat(q, R)
+    quat_to_R(q, R)
     d = params[HL_DRAG : HL_DRAG + 3]
 
     # Feed-forward: attitude, thrust vector and body rates of the reference (flatness, with drag).

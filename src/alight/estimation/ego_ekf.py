@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from alight.errors import EstimationError
+from alight.rotation_kernels import quat_to_R
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray
 
 # status codes shared by the kernels of this subpackage
@@ -175,22 +176,6 @@ def quat_log(q: FloatArray, out: FloatArray) -> None:
     out[0] = k * x
     out[1] = k * y
     out[2] = k * z
-
-
-@njit(cache=True)
-def quat_to_R(q: FloatArray, R: FloatArray) -> None:
-    """Rotation matrix of a quaternion (x, y, z, w), normalised here."""
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    x, y, z, w = q[0] / n, q[1] / n, q[2] / n, q[3] / n
-    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    R[0, 1] = 2.0 * (x * y - z * w)
-    R[0, 2] = 2.0 * (x * z + y * w)
-    R[1, 0] = 2.0 * (x * y + z * w)
-    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    R[1, 2] = 2.0 * (y * z - x * w)
-    R[2, 0] = 2.0 * (x * z - y * w)
-    R[2, 1] = 2.0 * (y * z + x * w)
-    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
 @njit(cache=True)

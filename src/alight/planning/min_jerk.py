@@ -551,6 +551,29 @@ def _coeffs(x: object, name: str, n: int) -> FloatArray:
     return a
 
 
+def _boundary_arrays(
+    p0: object, v0: object, a0: object, T: object, pf: object, vf: object, af: object, mode: EndConstraint
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Validated durations (N,) and start/end states as the kernels take them (see the callers)."""
+    t = _durations(T)
+    n = t.size
+    P0, V0, A0 = _states(p0, "p0", n), _states(v0, "v0", n), _states(a0, "a0", n)
+    if not (P0.shape[0] == V0.shape[0] == A0.shape[0]):
+        raise ValueError("p0, v0 and a0 must have the same shape")
+    PF = _states(pf, "pf", n)
+    if PF.shape[0] != n:
+        raise ValueError(f"pf must have shape ({n}, 3)")
+    if mode != EndConstraint.POS and vf is None:
+        raise ValueError(f"vf is required for mode {mode.name}")
+    if mode == EndConstraint.POS_VEL_ACC and af is None:
+        raise ValueError("af is required for mode POS_VEL_ACC")
+    VF = _states(vf, "vf", n) if vf is not None else np.zeros((n, 3))
+    if VF.shape[0] != n:
+        VF = np.ascontiguousarray(np.broadcast_to(VF, (n, 3)))
+    AF = _states(af, "af", n) if af is not None else np.zeros((1, 3))
+    return t, P0, V0, A0, PF, VF, AF
+
+
 def min_jerk_coefficients(
     p0: FloatArray,
     v0: FloatArray,
@@ -572,22 +595,8 @@ def min_jerk_coefficients(
         mode: which final-state components are fixed.
     """
     mode = EndConstraint(mode)
-    t = _durations(T)
+    t, P0, V0, A0, PF, VF, AF = _boundary_arrays(p0, v0, a0, T, pf, vf, af, mode)
     n = t.size
-    P0, V0, A0 = _states(p0, "p0", n), _states(v0, "v0", n), _states(a0, "a0", n)
-    if not (P0.shape[0] == V0.shape[0] == A0.shape[0]):
-        raise ValueError("p0, v0 and a0 must have the same shape")
-    PF = _states(pf, "pf", n)
-    if PF.shape[0] != n:
-        raise ValueError(f"pf must have shape ({n}, 3)")
-    if mode != EndConstraint.POS and vf is None:
-        raise ValueError(f"vf is required for mode {mode.name}")
-    if mode == EndConstraint.POS_VEL_ACC and af is None:
-        raise ValueError("af is required for mode POS_VEL_ACC")
-    VF = _states(vf, "vf", n) if vf is not None else np.zeros((n, 3))
-    if VF.shape[0] != n:
-        VF = np.ascontiguousarray(np.broadcast_to(VF, (n, 3)))
-    AF = _states(af, "af", n) if af is not None else np.zeros((1, 3))
     alpha, beta, gamma = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     _coefficients_kernel(P0, V0, A0, t, PF, VF, AF, int(mode), alpha, beta, gamma)
     return alpha, beta, gamma
@@ -743,22 +752,8 @@ def evaluate_candidates(
     test runs when ``plane_point`` is given (``plane_normal`` defaults to +z)."""
     mode = EndConstraint(mode)
     _check_limits(f_min, f_max, w_max, min_section_s)
-    t = _durations(T)
+    t, P0, V0, A0, PF, VF, AF = _boundary_arrays(p0, v0, a0, T, pf, vf, af, mode)
     n = t.size
-    P0, V0, A0 = _states(p0, "p0", n), _states(v0, "v0", n), _states(a0, "a0", n)
-    if not (P0.shape[0] == V0.shape[0] == A0.shape[0]):
-        raise ValueError("p0, v0 and a0 must have the same shape")
-    PF = _states(pf, "pf", n)
-    if PF.shape[0] != n:
-        raise ValueError(f"pf must have shape ({n}, 3)")
-    if mode != EndConstraint.POS and vf is None:
-        raise ValueError(f"vf is required for mode {mode.name}")
-    if mode == EndConstraint.POS_VEL_ACC and af is None:
-        raise ValueError("af is required for mode POS_VEL_ACC")
-    VF = _states(vf, "vf", n) if vf is not None else np.zeros((n, 3))
-    if VF.shape[0] != n:
-        VF = np.ascontiguousarray(np.broadcast_to(VF, (n, 3)))
-    AF = _states(af, "af", n) if af is not None else np.zeros((1, 3))
     check = plane_point is not None
     if check:
         q, nrm = _plane(plane_point, plane_normal if plane_normal is not None else (0.0, 0.0, 1.0))
