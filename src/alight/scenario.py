@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from alight.errors import ConfigError
 
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
@@ -37,9 +38,9 @@ class PlatformSpec(_Strict):
     speed_mps: NonNegFloat = 1.2
     pad_size_m: PositiveFloat = 1.5
     pad_height_m: NonNegFloat = 0.5
-    start_xy: tuple[float, float] | None = None
+    start_xy: tuple[FiniteFloat, FiniteFloat] | None = None
     """Start of the path in W (m); None draws it from the seed inside the search area."""
-    heading_rad: float | None = None
+    heading_rad: FiniteFloat | None = None
     """Initial heading (rad); None draws it from the seed."""
     circle_radius_m: PositiveFloat = 10.0
     figure8_length_m: PositiveFloat = 60.0
@@ -52,7 +53,7 @@ class WindSpec(_Strict):
     """Wind: none, a steady air velocity, or the gust model of paper 004 Sec. IV-C."""
 
     model: Literal["none", "steady", "gust"] = "none"
-    velocity_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    velocity_mps: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = (0.0, 0.0, 0.0)
     """Steady wind: the air's velocity in W (m/s)."""
     gust_power_N: PositiveFloat = 7.0
     """Gust model: the initial force ``power_init`` (N); 3.45 and 7.76 N are the 8 and 12 m/s cases."""
@@ -93,7 +94,7 @@ class CameraSpec(_Strict):
 class FaultSpec(_Strict):
     dropout_prob: Probability = 0.0
     """Extra probability that a detection is lost."""
-    blackouts: list[tuple[float, float]] = Field(default_factory=list)
+    blackouts: list[tuple[FiniteFloat, FiniteFloat]] = Field(default_factory=list)
     """Intervals [t0, t1] (s) with no detections at all."""
 
     @model_validator(mode="after")
@@ -105,10 +106,10 @@ class FaultSpec(_Strict):
 
 
 class SearchArea(_Strict):
-    x_min: float = -20.0
-    x_max: float = 20.0
-    y_min: float = -20.0
-    y_max: float = 20.0
+    x_min: FiniteFloat = -20.0
+    x_max: FiniteFloat = 20.0
+    y_min: FiniteFloat = -20.0
+    y_max: FiniteFloat = 20.0
 
     @model_validator(mode="after")
     def _ordered(self) -> SearchArea:

@@ -214,3 +214,12 @@ def test_mount_rejects_non_rotations() -> None:
         CameraMount(np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(ValueError):
         CameraMount(np.eye(3), np.array([0.0, np.inf, 0.0]))
+
+
+def test_corrupt_calibration_file_is_an_input_error(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from alight.errors import InputError
+
+    bad = tmp_path / "bad.yml"
+    bad.write_text("not: [yaml\n")
+    with pytest.raises(InputError, match="not a readable OpenCV calibration file"):
+        PinholeCamera.from_opencv_yaml(bad)

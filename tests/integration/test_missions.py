@@ -135,6 +135,8 @@ def test_cli_fly_writes_result_log_and_report(tmp_path, capsys) -> None:  # type
         ("preset: [unclosed\n", "not valid YAML"),
         ("- a list\n", "expected a mapping"),
         ("preset: groundtruth\nfaults: {blackouts: [[5, 1]]}\n", "blackout"),
+        ("preset: groundtruth\nwind: {model: steady, velocity_mps: [.nan, 0, 0]}\n", "wind.velocity_mps"),
+        ("preset: groundtruth\nplatform: {heading_rad: .inf}\n", "platform.heading_rad"),
     ],
 )
 def test_bad_scenario_gives_one_line_and_exit_2(tmp_path, capsys, text: str, message: str) -> None:  # type: ignore[no-untyped-def]

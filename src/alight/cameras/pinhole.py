@@ -102,6 +102,8 @@ class PinholeCamera:
             fs = cv2.FileStorage(p, cv2.FILE_STORAGE_READ)
         except cv2.error as e:
             raise InputError(f"{p}: not a readable OpenCV calibration file ({e.err})") from None
+        except SystemError:  # OpenCV's Python binding surfaces some parse errors this way
+            raise InputError(f"{p}: not a readable OpenCV calibration file (parse error)") from None
         try:
             K = _read_matrix(fs, ("camera_matrix", "K"))
             dist = _read_matrix(fs, ("distortion_coefficients", "dist_coeffs", "D"))
