@@ -30,6 +30,12 @@ _ZERO3: FloatArray = np.zeros(3)
 _ZERO3.setflags(write=False)
 
 
+def _frozen_base(a: FloatArray) -> bool:
+    # A view into a read-only array that owns its data (a packed message, see EgoState.from_packed).
+    base = a.base
+    return type(base) is np.ndarray and base.flags.owndata and not base.flags.writeable
+
+
 def _frozen(a: object, shape: tuple[int, ...], name: str) -> FloatArray:
     # An array that is already read-only, float64, owns its data and has the right shape cannot change
     # under us (messages pass such arrays on to one another): share it instead of copying.
@@ -38,7 +44,7 @@ def _frozen(a: object, shape: tuple[int, ...], name: str) -> FloatArray:
         and a.dtype == np.float64
         and a.shape == shape
         and not a.flags.writeable
-        and a.flags.owndata
+        and (a.flags.owndata or _frozen_base(a))
     ):
         return a
     arr = np.array(a, dtype=np.float64)  # a copy, so the caller keeps ownership of its buffer
@@ -144,6 +150,22 @@ class EgoState:
             object.__setattr__(self, "a_WB", _ZERO3)
         else:
             object.__setattr__(self, "a_WB", _frozen(self.a_WB, (3,), "a_WB"))
+
+    @classmethod
+    def from_packed(cls, t: float, packed: FloatArray) -> EgoState:
+        """Construct without validation from one float64 array (16,) laid out as p_WB, v_WB, q_WB, w_WB_B,
+        a_WB, which the message takes over (made read-only; the caller must not keep writing to it). For
+        the ego estimator at 100-200 Hz: one array instead of five copies. The fields are views of it."""
+        self = object.__new__(cls)
+        packed.flags.writeable = False
+        setattr_ = object.__setattr__
+        setattr_(self, "t", float(t))
+        setattr_(self, "p_WB", packed[0:3])
+        setattr_(self, "v_WB", packed[3:6])
+        setattr_(self, "q_WB", packed[6:10])
+        setattr_(self, "w_WB_B", packed[10:13])
+        setattr_(self, "a_WB", packed[13:16])
+        return self
 
     @classmethod
     def trusted(
@@ -300,6 +322,22 @@ class Reference:
             object.__setattr__(self, name, _frozen(getattr(self, name), (3,), name))
 
     @classmethod
+    def from_packed(cls, t: float, pvaj: FloatArray, yaw: float = 0.0, yaw_rate: float = 0.0) -> Reference:
+        """Construct without validation from one float64 array (4, 3) with rows p, v, a, j, which the
+        message takes over (made read-only); the fields are views of it. For the guidance at 100 Hz."""
+        self = object.__new__(cls)
+        pvaj.flags.writeable = False
+        setattr_ = object.__setattr__
+        setattr_(self, "t", float(t))
+        setattr_(self, "p", pvaj[0])
+        setattr_(self, "v", pvaj[1])
+        setattr_(self, "a", pvaj[2])
+        setattr_(self, "j", pvaj[3])
+        setattr_(self, "yaw", float(yaw))
+        setattr_(self, "yaw_rate", float(yaw_rate))
+        return self
+
+    @classmethod
     def trusted(
         cls,
         t: float,
@@ -341,6 +379,20 @@ class Command:
         object.__setattr__(self, "w_WB_B_cmd", _frozen(self.w_WB_B_cmd, (3,), "w_WB_B_cmd"))
         if not math.isfinite(self.thrust_N):
             raise ValueError(f"thrust_N must be finite, got {self.thrust_N}")
+
+    @classmethod
+    def trusted(cls, t: float, thrust_N: float, w_WB_B_cmd: FloatArray) -> Command:
+        """Construct without validation, for the controller at 100 Hz that has already checked its output
+        is finite. ``w_WB_B_cmd`` is copied and made read-only."""
+        self = object.__new__(cls)
+        setattr_ = object.__setattr__
+        w = w_WB_B_cmd.copy()
+        w.flags.writeable = False
+        setattr_(self, "t", float(t))
+        setattr_(self, "thrust_N", float(thrust_N))
+        setattr_(self, "w_WB_B_cmd", w)
+        setattr_(self, "motors_off", False)
+        return self
 
 
 class Mode(enum.StrEnum):

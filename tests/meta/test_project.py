@@ -105,3 +105,40 @@ def test_trusted_reference_matches_the_checked_one() -> None:
         assert not getattr(fast, name).flags.writeable
     p[0] = 99.0
     assert fast.p[0] == 0.0 and (fast.yaw, fast.yaw_rate) == (checked.yaw, checked.yaw_rate)
+
+
+def test_trusted_command_matches_the_checked_one() -> None:
+    import numpy as np
+
+    from alight.types import Command
+
+    w = np.array([0.1, -0.2, 0.3])
+    checked = Command(2.0, 9.5, w)
+    fast = Command.trusted(2.0, 9.5, w)
+    assert (fast.t, fast.thrust_N, fast.motors_off) == (checked.t, checked.thrust_N, checked.motors_off)
+    np.testing.assert_array_equal(fast.w_WB_B_cmd, checked.w_WB_B_cmd)
+    w[0] = 99.0
+    assert fast.w_WB_B_cmd[0] == 0.1 and not fast.w_WB_B_cmd.flags.writeable
+
+
+def test_packed_messages_match_the_checked_ones() -> None:
+    import numpy as np
+
+    from alight.types import EgoState, PlatformEstimate, Reference
+
+    q = np.array([0.0, 0.0, np.sin(0.3), np.cos(0.3)])
+    packed = np.concatenate([np.arange(3.0), np.ones(3), q, np.zeros(3), np.full(3, 2.0)])
+    fast = EgoState.from_packed(1.5, packed.copy())
+    checked = EgoState(1.5, packed[0:3], packed[3:6], q, packed[10:13], packed[13:16])
+    for name in ("p_WB", "v_WB", "q_WB", "w_WB_B", "a_WB"):
+        np.testing.assert_array_equal(getattr(checked, name), getattr(fast, name))
+        assert not getattr(fast, name).flags.writeable
+    # A message built from a packed message's fields shares them (read-only views of an owned base).
+    est = PlatformEstimate(0.0, fast.p_WB, fast.v_WB, fast.a_WB, 0.0, np.eye(3), 0.0)
+    assert est.p_WP is fast.p_WB
+    pvaj = np.arange(12.0).reshape(4, 3)
+    ref = Reference.from_packed(0.5, pvaj.copy(), 0.1, 0.2)
+    checked_ref = Reference(0.5, pvaj[0], pvaj[1], pvaj[2], pvaj[3], 0.1, 0.2)
+    for name in ("p", "v", "a", "j"):
+        np.testing.assert_array_equal(getattr(checked_ref, name), getattr(ref, name))
+        assert not getattr(ref, name).flags.writeable

@@ -188,3 +188,19 @@ def test_range_noise_statistics():
     r = np.array([rf.measure(np.array([0.0, 0.0, 5.1]), Q_LEVEL, _pad(x=50.0), 1.5) for _ in range(5000)])
     assert r.mean() == pytest.approx(5.0, abs=4 * 0.02 / math.sqrt(5000))
     assert r.std() == pytest.approx(0.02, rel=0.05)
+
+
+def test_noise_stream_peek_and_skip_give_the_same_numbers_as_rows() -> None:
+    from alight.sim.sensors import _NormalStream
+
+    a = _NormalStream(np.random.default_rng(3), 4, block=5)
+    b = _NormalStream(np.random.default_rng(3), 4, block=5)
+    rows = np.array([a.row() for _ in range(23)])
+    got = []
+    for want, use in [(2, 1), (2, 2), (3, 1), (2, 2), (4, 3), (2, 1), (5, 5), (2, 2), (3, 3), (3, 3)]:
+        peeked = b.peek(want)
+        np.testing.assert_array_equal(peeked, rows[len(got) : len(got) + want])
+        b.skip(use)
+        got.extend(peeked[:use])
+    np.testing.assert_array_equal(np.array(got), rows[: len(got)])
+    np.testing.assert_array_equal(b.take(0), np.empty((0, 4)))

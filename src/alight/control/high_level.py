@@ -639,4 +639,4 @@ class HighLevelController:
         )
         if not ok:
             raise ValueError(f"non-finite controller output at t={t}: check the ego state and reference")
-        return Command(t=t, thrust_N=float(out[0]), w_WB_B_cmd=out[1:4])
+        return Command.trusted(t, out[0], out[1:4])

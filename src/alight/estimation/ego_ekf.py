@@ -597,6 +597,25 @@ def _check_nonneg(name: str, value: float) -> None:
         raise ValueError(f"{name} must be finite and >= 0, got {value}")
 
 
+@njit(cache=True)
+def _pack_state(x, imu, has_imu, gravity, out):  # type: ignore[no-untyped-def]
+    """The ego state (16,) = p, v, q, w, a from the nominal state and the last IMU sample: body rates are
+    the gyro minus its bias, ``a = R (f - b_a) + g``. One compiled call instead of a dozen array ops."""
+    for i in range(10):
+        out[i] = x[i]
+    if not has_imu:
+        for i in range(10, 16):
+            out[i] = 0.0
+        return
+    R = np.empty((3, 3))
+    quat_to_R(x[6:10], R)
+    for i in range(3):
+        out[10 + i] = imu[3 + i] - x[13 + i]
+    for i in range(3):
+        out[13 + i] = R[i, 0] * (imu[0] - x[10]) + R[i, 1] * (imu[1] - x[11]) + R[i, 2] * (imu[2] - x[12])
+    out[15] -= gravity
+
+
 @dataclass(frozen=True, kw_only=True)
 class EgoEkfConfig:
     """Noise model and initial uncertainty of :class:`EgoEkf`.
@@ -959,17 +978,9 @@ class EgoEkf:
         if not self._initialized:
             raise EstimationError("EgoEkf.state called before initialize")
         if self._state_cache is None:
-            x = self._x
-            if self._has_imu:
-                R = np.empty((3, 3))
-                quat_to_R(x[6:10], R)
-                a = R @ (self._imu[0:3] - x[10:13])
-                a[2] -= self.config.gravity
-                w = self._imu[3:6] - x[13:16]
-            else:
-                a = np.zeros(3)
-                w = np.zeros(3)
+            packed = np.empty(16)
+            _pack_state(self._x, self._imu, self._has_imu, self.config.gravity, packed)
             # The filter's state is finite and its quaternion unit by construction (checked inputs,
             # renormalised after every step), so the unchecked constructor is safe here.
-            self._state_cache = EgoState.trusted(self._t, x[0:3], x[3:6], x[6:10], w, a)
+            self._state_cache = EgoState.from_packed(self._t, packed)
         return self._state_cache

@@ -106,3 +106,40 @@ def tick(
         a[k] = (y[IX_V + k] - x[IX_V + k]) / span
     imu = imu_sample_kernel(a, y[IX_Q : IX_Q + 4], y[IX_W : IX_W + 3], imu_bias, imu_noise, imu_scale)
     return y, imu
+
+
+@njit(cache=True)
+def tick_batch(
+    x: FloatArray,
+    inputs: FloatArray,
+    sim_params: FloatArray,
+    ll_params: FloatArray,
+    imu_bias: FloatArray,
+    imu_noise: FloatArray,
+    imu_scale: FloatArray,
+    dt: float,
+    n: int,
+    gear_height: float,
+    m: int,
+    z_low: float,
+    z_high: float,
+) -> tuple[FloatArray, FloatArray, int]:
+    """Up to ``m`` consecutive :func:`tick` s with the inputs held, in one compiled call: the states
+    (m, NX) and IMU samples (m, 6) after each, and how many were run. It stops early after a tick that
+    leaves the body height outside (``z_low``, ``z_high``), where the caller must act (a touchdown to
+    judge, a lift-off that releases the ground support). ``imu_noise`` (m, 12): one row per tick.
+
+    Between two commands of the 100 Hz controller nothing else changes the inputs, so the runner asks
+    for two 200 Hz ticks at a time: half the calls into compiled code, the same arithmetic."""
+    xs = np.empty((m, x.shape[0]))
+    imus = np.empty((m, 6))
+    y = x
+    done = 0
+    for i in range(m):
+        y, imu = tick(y, inputs, sim_params, ll_params, imu_bias, imu_noise[i], imu_scale, dt, n, gear_height)
+        xs[i] = y
+        imus[i] = imu
+        done += 1
+        if y[2] <= z_low or y[2] >= z_high:
+            break
+    return xs, imus, done

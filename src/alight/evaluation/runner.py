@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,7 +36,7 @@ from alight.evaluation.physics import (
     IN_V_WIND,
     IN_W_CMD,
     N_IN,
-    tick,
+    tick_batch,
 )
 from alight.mission.presets import build_preset
 from alight.scenario import Scenario
@@ -47,7 +48,7 @@ from alight.sim.textures import make_ground_texture
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import GustWind, NoWind, SteadyWind
-from alight.types import Mode, Outcome, quat_to_rotmat
+from alight.types import Mode, Observation, Outcome, quat_to_rotmat
 
 PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
@@ -123,10 +124,19 @@ def _wind(s: Scenario, rng: np.random.Generator) -> NoWind | SteadyWind | GustWi
     return NoWind()
 
 
+FrameSink = Callable[[float, np.ndarray, list[Observation]], None]
+"""Receives each camera frame a vision preset processed: capture time (s), the image, the detections."""
+
+
 def run_mission(
-    scenario: Scenario, *, airframe: Airframe = DEFAULT_AIRFRAME, record: bool = True
+    scenario: Scenario,
+    *,
+    airframe: Airframe = DEFAULT_AIRFRAME,
+    record: bool = True,
+    frame_sink: FrameSink | None = None,
 ) -> MissionRun:
-    """Fly one mission of ``scenario`` and return its result (and log when ``record``)."""
+    """Fly one mission of ``scenario`` and return its result (and log when ``record``). ``frame_sink``
+    sees every camera frame with its detections (for replays); it must not modify them."""
     wall0 = time.perf_counter()
     s = scenario
     seeds = np.random.SeedSequence(s.seed).spawn(8)
@@ -218,18 +228,35 @@ def run_mission(
     mode = Mode.IDLE
     pad = s.platform.pad_size_m
 
+    # Motor thrusts at the log rate, for the flight energy whether or not the mission is recorded.
+    motor_t = np.empty(n_ticks // every_log + 1)
+    motor_N = np.empty((motor_t.size, 4))
+    n_motor = 0
+
     k = 0
     t = 0.0
+    batch_xs = batch_imu = np.empty((0, 0))
+    batch_i = batch_n = 0
     for k in range(1, n_ticks + 1):
-        if not windless:
-            f_wind = wind.force_W(t, x[SL_P], x[SL_V])
-            v_air = wind.air_velocity_W(t)
-            inputs[IN_F_EXT : IN_F_EXT + 3] = f_wind
-            inputs[IN_V_WIND : IN_V_WIND + 3] = v_air
-        imu_bias, imu_noise, imu_scale = imu.kernel_inputs()
-        x, imu_out = tick(
-            x, inputs, sim_params, ll_params, imu_bias, imu_noise, imu_scale, PHYSICS_DT, n_sub, gear
-        )
+        if batch_i == batch_n:
+            # The physics runs in batches that end where the controller issues its next command (the
+            # inputs are constant in between), cut short where the runner has to act on the state.
+            if not windless:
+                f_wind = wind.force_W(t, x[SL_P], x[SL_V])
+                v_air = wind.air_velocity_W(t)
+                inputs[IN_F_EXT : IN_F_EXT + 3] = f_wind
+                inputs[IN_V_WIND : IN_V_WIND + 3] = v_air
+            m = min(every_control - (k - 1) % every_control, n_ticks + 1 - k)
+            imu_bias, imu_noise, imu_scale = imu.kernel_inputs_many(m)
+            batch_xs, batch_imu, batch_n = tick_batch(
+                x, inputs, sim_params, ll_params, imu_bias, imu_noise, imu_scale, PHYSICS_DT, n_sub, gear,
+                m, low_z if airborne and contact is None else -math.inf,
+                math.inf if airborne else gear + 0.05,
+            )  # fmt: skip
+            imu.used(batch_n)
+            batch_i = 0
+        x, imu_out = batch_xs[batch_i], batch_imu[batch_i]
+        batch_i += 1
         t = k * TICK_DT
         p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]
 
@@ -282,7 +309,9 @@ def run_mission(
         while pending and pending[0][0] <= t + 1e-9:
             _, t_cap, frame = pending.popleft()
             if renderer is not None:
-                _, measurements = pipeline.on_image(t_cap, frame)  # type: ignore[arg-type]
+                observations, measurements = pipeline.on_image(t_cap, frame)  # type: ignore[arg-type]
+                if frame_sink is not None:
+                    frame_sink(t_cap, frame, observations)  # type: ignore[arg-type]
             else:
                 measurements = pipeline.on_observations(t_cap, frame)  # type: ignore[arg-type]
             if log is not None:
@@ -306,6 +335,10 @@ def run_mission(
             outcome = Outcome.ABORTED
             break
 
+        if k % every_log == 0:
+            motor_t[n_motor] = t
+            motor_N[n_motor] = x[IX_F : IX_F + 4]
+            n_motor += 1
         if log is not None and k % every_log == 0:
             ego = pipeline.ego()
             target = pipeline.target(t)
@@ -341,10 +374,9 @@ def run_mission(
         "t_landing_start": stats.t_landing_start,
         "t_touchdown": t_contact,
     }
-    energy = None
+    energy = flight_energy_J(motor_t[:n_motor], motor_N[:n_motor]) if n_motor > 1 else None
     rmse = None
     if arrays is not None and len(arrays["t"]) > 1:
-        energy = flight_energy_J(arrays["t"], arrays["motor_N"])
         err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
         err = err[np.isfinite(err)]
         rmse = float(np.sqrt(np.mean(err**2))) if err.size else None

@@ -228,16 +228,17 @@ class Guidance:
                 z_goal = float(target.p_WP[2]) + mcfg.track_height_m
                 z = min(self._z_entry + cfg.climb_speed_mps * dt, z_goal)
                 vz = cfg.climb_speed_mps if z < z_goal else 0.0
-            p = np.array([target.p_WP[0], target.p_WP[1], z])
-            v = np.array([target.v_WP[0], target.v_WP[1], vz])
-            a = np.array([target.a_WP[0], target.a_WP[1], 0.0])
-            ref = Reference.trusted(t, p, v, a, _platform_jerk(target), cfg.yaw, 0.0)
+            pvaj = np.empty((4, 3))
+            pvaj[0, 0:2] = target.p_WP[0:2]
+            pvaj[1, 0:2] = target.v_WP[0:2]
+            pvaj[2, 0:2] = target.a_WP[0:2]
+            pvaj[0, 2], pvaj[1, 2], pvaj[2, 2] = z, vz, 0.0
+            pvaj[3] = _platform_jerk(target)
+            ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
         elif self._route is not None and mode is Mode.EXPLORE:
-            p, v, a, j = self._route.reference(t)
-            ref = Reference.trusted(t, p, v, a, j, cfg.yaw, 0.0)
+            ref = Reference.from_packed(t, self._route.reference_packed(t), cfg.yaw, 0.0)
         elif self._traj is not None:
-            p, v, a, j = self._traj.sample(t)
-            ref = Reference.trusted(t, p, v, a, j, cfg.yaw, 0.0)
+            ref = Reference.from_packed(t, self._traj.sample_packed(t), cfg.yaw, 0.0)
         elif self._last_ref is not None:
             r = self._last_ref
             ref = Reference.trusted(t, r.p, _ZERO3, _ZERO3, _ZERO3, cfg.yaw, 0.0)

@@ -317,6 +317,14 @@ class ExplorationRoute:
         seg, ts = s
         return seg.sample(ts)
 
+    def reference_packed(self, t: float) -> FloatArray:
+        """As :meth:`reference`, stacked in one new array (4, 3): rows p, v, a, j."""
+        s = self._segment(t)
+        if isinstance(s, MinJerkTrajectory):
+            return s.sample_packed(t)
+        seg, ts = s
+        return seg.sample_packed(ts)
+
     def done(self, t: float) -> bool:
         """True once every sweep has been flown at least once (the route itself keeps looping)."""
         return t >= self.t_first_pass_end

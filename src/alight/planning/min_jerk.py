@@ -884,6 +884,10 @@ class MinJerkTrajectory:
         o = _sample_one(self._packed, self.t0, self.T, float(t))
         return o[0], o[1], o[2], o[3]
 
+    def sample_packed(self, t: float) -> FloatArray:
+        """As :meth:`sample`, stacked in one new array (4, 3): rows p, v, a, j."""
+        return _sample_one(self._packed, self.t0, self.T, float(t))
+
     def sample_many(self, ts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """As :meth:`sample` at the absolute times ``ts`` (n,): four (n, 3) arrays."""
         o = _sample_packed(

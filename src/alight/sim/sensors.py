@@ -30,12 +30,19 @@ class _NormalStream:
         self._width = width
         self._block = block
         self._buf = np.empty((0, width))
+        self._next: FloatArray | None = None  # the block after _buf, when a peek already drew it
+        self._i = 0
+
+    def _advance_block(self) -> None:
+        self._buf = (
+            self._next if self._next is not None else self._rng.standard_normal((self._block, self._width))
+        )
+        self._next = None
         self._i = 0
 
     def row(self) -> FloatArray:
         if self._i >= self._buf.shape[0]:
-            self._buf = self._rng.standard_normal((self._block, self._width))
-            self._i = 0
+            self._advance_block()
         r = self._buf[self._i]
         self._i += 1
         return r
@@ -46,13 +53,34 @@ class _NormalStream:
         k = 0
         while k < n:
             if self._i >= self._buf.shape[0]:
-                self._buf = self._rng.standard_normal((self._block, self._width))
-                self._i = 0
+                self._advance_block()
             m = min(n - k, self._buf.shape[0] - self._i)
             out[k : k + m] = self._buf[self._i : self._i + m]
             self._i += m
             k += m
         return out
+
+    def peek(self, n: int) -> FloatArray:
+        """The next n rows (n <= block) without using them up (:meth:`skip` does): shape (n, width)."""
+        if n > self._block:
+            raise ValueError(f"peek of {n} rows: at most one block ({self._block})")
+        if self._i >= self._buf.shape[0]:
+            self._advance_block()
+        left = self._buf.shape[0] - self._i
+        if n <= left:
+            return self._buf[self._i : self._i + n].copy()
+        if self._next is None:
+            self._next = self._rng.standard_normal((self._block, self._width))
+        return np.concatenate([self._buf[self._i :], self._next[: n - left]])
+
+    def skip(self, n: int) -> None:
+        """Use up the next n rows (at most the n of the last :meth:`peek`)."""
+        left = self._buf.shape[0] - self._i
+        if n <= left:
+            self._i += n
+        else:
+            self._advance_block()
+            self._i = n - left
 
 
 def _f64(a: FloatArray) -> FloatArray:
@@ -216,6 +244,15 @@ class Imu:
         (12,). One call per sample; the same numbers as :meth:`measure`."""
         return self._bias, self._stream.row(), self._scale
 
+    def kernel_inputs_many(self, m: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """As :meth:`kernel_inputs` for up to ``m`` samples: the next noise rows (m, 12), which stay
+        unused until :meth:`used` says how many the kernel took (the rest go to the next samples)."""
+        return self._bias, self._stream.peek(m), self._scale
+
+    def used(self, n: int) -> None:
+        """The compiled loop took ``n`` of the rows :meth:`kernel_inputs_many` gave."""
+        self._stream.skip(n)
+
     def measure_many(
         self, a_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
@@ -367,7 +404,8 @@ class Odometry:
         out = _odometry_sample(
             _f64(p_WB), _f64(v_WB), _f64(q_WB), _f64(w_WB_B), self._drift, self._stream.row(), self._scale
         )
-        return EgoState(t=float(t), p_WB=out[0:3], v_WB=out[3:6], q_WB=out[6:10], w_WB_B=out[10:13])
+        # The kernel's output is finite with a unit quaternion: the unchecked constructor is safe.
+        return EgoState.trusted(t, out[0:3], out[3:6], out[6:10], out[10:13])
 
 
 # --------------------------------------------------------------------------------------------------
