@@ -2,7 +2,8 @@
 
 Camera frame ``C`` is OpenCV's (x right, y down, z along the optical axis); pixels ``(u, v)`` have integer
 values at pixel centres. Every model satisfies :class:`CameraModel`; :func:`load_camera` reads a
-calibration file and picks the model from the file type.
+calibration file and picks the model from the file type: OpenCV ``FileStorage`` YAML/XML/JSON for
+:class:`PinholeCamera`, OCamCalib ``calib_results.txt`` for :class:`OmniCamera`.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
+from alight.cameras.omni import OmniCamera, solve_rho
 from alight.cameras.pinhole import CameraMount, PinholeCamera, camera_pose_W
 from alight.errors import InputError
 from alight.types import FloatArray
@@ -45,8 +47,9 @@ LOADERS: dict[str, Callable[[str], CameraModel]] = {
     ".yaml": PinholeCamera.from_opencv_yaml,
     ".xml": PinholeCamera.from_opencv_yaml,
     ".json": PinholeCamera.from_opencv_yaml,
+    ".txt": OmniCamera.from_ocamcalib,
 }
-"""Calibration-file loaders by lower-case file suffix (an OCamCalib ``.txt`` loader goes here)."""
+"""Calibration-file loaders by lower-case file suffix (``.txt``: OCamCalib's ``calib_results.txt``)."""
 
 
 def load_camera(path: str | os.PathLike[str]) -> CameraModel:
@@ -61,4 +64,13 @@ def load_camera(path: str | os.PathLike[str]) -> CameraModel:
     return loader(str(p))
 
 
-__all__ = ["LOADERS", "CameraModel", "CameraMount", "PinholeCamera", "camera_pose_W", "load_camera"]
+__all__ = [
+    "LOADERS",
+    "CameraModel",
+    "CameraMount",
+    "OmniCamera",
+    "PinholeCamera",
+    "camera_pose_W",
+    "load_camera",
+    "solve_rho",
+]
