@@ -20,6 +20,7 @@ from alight.control.high_level import (
     high_level_kernel,
     pack_high_level_params,
 )
+from alight.control.l1_adaptive import L1AugmentedController, L1Config, faessler2017_l1
 from alight.control.mixer import PriorityMixer, low_level, mix
 from alight.control.rate import BodyRateController, RateControllerGains, pack_low_level_params, rate_torque
 from alight.types import Command, EgoState, FloatArray, Reference
@@ -56,8 +57,10 @@ def _faessler2017(airframe: Airframe, **options: Any) -> Controller:
 
 REGISTRY: dict[str, Callable[..., Controller]] = {
     "faessler2017": _faessler2017,
+    "faessler2017_l1": faessler2017_l1,
 }
-"""High-level controllers by name: ``REGISTRY[name](airframe, **gain_overrides)``."""
+"""High-level controllers by name: ``REGISTRY[name](airframe, **gain_overrides)``; ``faessler2017_l1`` adds
+the L1 adaptive augmentation of paper 003 (options named like :class:`L1Config` fields go to it)."""
 
 __all__ = [
     "REGISTRY",
@@ -65,6 +68,8 @@ __all__ = [
     "Controller",
     "HighLevelController",
     "HighLevelGains",
+    "L1AugmentedController",
+    "L1Config",
     "Mixer",
     "PriorityMixer",
     "RateController",
