@@ -17,6 +17,8 @@ from alight.estimation import (
     PlatformEkfConfig,
     PlatformEstimator,
 )
+from alight.estimation.platform_velocity import PlatformVelocityConfig
+from alight.estimation.sdu_kf import SduKfConfig
 from alight.types import GRAVITY_MPS2, PlatformEstimate, PlatformMeasurement
 
 
@@ -81,7 +83,7 @@ def test_ego_factories_refuse_unknown_parameters(name: str) -> None:
         EGO_REGISTRY[name](no_such_parameter=1.0)
 
 
-@pytest.mark.parametrize("cls", [EgoEkfConfig, PlatformEkfConfig])
+@pytest.mark.parametrize("cls", [EgoEkfConfig, PlatformEkfConfig, SduKfConfig, PlatformVelocityConfig])
 def test_every_config_field_is_documented(cls: type) -> None:
     """Each field is followed by its docstring (unit and meaning), as the style asks."""
     tree = ast.parse(inspect.getsource(cls))

@@ -18,6 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
+from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
 from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
 
 
@@ -97,6 +98,10 @@ def _platform_ekf_ctrv(**params: Any) -> PlatformEkf:
     return PlatformEkf(PlatformEkfConfig(**params))
 
 
+def _sdu_kf(**params: Any) -> SduKalmanFilter:
+    return SduKalmanFilter(SduKfConfig(**params))
+
+
 def _ego_ekf(**params: Any) -> EgoEkf:
     return EgoEkf(EgoEkfConfig(**params))
 
@@ -104,6 +109,7 @@ def _ego_ekf(**params: Any) -> EgoEkf:
 REGISTRY: dict[str, Callable[..., PlatformEstimator]] = {
     "ekf_unicycle": _platform_ekf,
     "ekf_unicycle_turn": _platform_ekf_ctrv,
+    "sdu_kf": _sdu_kf,
 }
 """Platform estimators by name; each factory takes the estimator's config fields as keywords."""
 
@@ -121,4 +127,6 @@ __all__ = [
     "PlatformEkf",
     "PlatformEkfConfig",
     "PlatformEstimator",
+    "SduKalmanFilter",
+    "SduKfConfig",
 ]

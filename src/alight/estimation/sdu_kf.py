@@ -1,0 +1,445 @@
+"""Kalman filter on the UAV's position relative to the platform, with the UAV's velocity and acceleration
+and the platform's estimated velocity as inputs, and compensation of the detection delay (paper 004,
+Sec. IV-B, eq. 1-2).
+
+State (eq. 1): ``x = [x, y]``, the UAV's horizontal position relative to the landing marker
+(``x = p_WB - p_WP``, the paper's "position of the UAV in the landing site's local coordinate system").
+The paper writes it in NED, alight in W (ENU): the equations are the same in any fixed axes, only the
+names change (``x_NED`` -> ``x_W[1]``, ``y_NED`` -> ``x_W[0]``). The vertical is not filtered (the paper
+takes Z from the altitude): the platform's height is the last measurement's, with its variance.
+
+Prediction (eq. 1), over each interval ``dt`` between ego samples, with the inputs at its start
+(``u = [v_x, v_y, a_x, a_y, vm_x, vm_y]``: UAV velocity and acceleration, platform velocity from
+:class:`alight.estimation.platform_velocity.PlatformVelocityEstimator`)::
+
+    x += G u = v dt + a dt^2 / 2 - vm dt,     P += Q = dt sigma_IMU^2 I          (F = I)
+
+(exact for a UAV at constant acceleration over the interval and a platform at constant velocity).
+Correction (eq. 2), ``H = I``, ``R = sigma_obs^2 I``, ``P = (I - K H) P``, with the measurement shifted by
+what the relative position did during the detection delay ``dt_obs``::
+
+    z = x_obs + (dx_obs, dy_obs),     (dx_obs, dy_obs) = v_mean,obs dt_obs
+
+``v_mean,obs dt_obs`` is taken as the integral of ``G u`` over the delay: the filter's own prediction of the
+relative motion between the capture time and the filter's time. The paper names only the UAV's
+relocation during ``dt_obs``; for a relative state the platform's motion during the delay counts as much
+(1.5 m/s x 250 ms = 0.375 m when tracking), so ``compensation_velocity="relative"`` (default) shifts by
+the relative motion and ``"uav"`` by the UAV's alone, the paper's words read literally. Without
+compensation the estimate trails by (relative velocity) x delay: the platform's whole speed under a
+hovering UAV, much less under one that follows the platform (``test_latency_compensation_at_1_5_mps``).
+
+Gain at the capture time. The shifted measurement says where the relative position was at ``t_c``,
+moved on by the known inputs; the process noise of the delay window is in the prior at the filter's time
+``t_f`` but not in the measurement, so the two errors are correlated and eq. (2) with ``P(t_f)``
+over-weighs a delayed measurement (mean NEES over twice its 2 at 200 ms in ``test_sdu_kf.py``). Fusing at
+``t_c`` and predicting on to ``t_f`` gives the same innovation (``x(t_f) = x(t_c) + integral of G u``) with
+the gain ``K = P_c (P_c + R)^-1``, ``P_c = P(t_c)``; with ``F = I`` and measurements in capture order the
+filter only has to keep ``P`` at the last capture time (``P(t_f) = P_c + (t_f - t_c) sigma_IMU^2 I``).
+That is the default (``capture_time_gain``); without delay both are eq. (2) exactly.
+
+Frames and the PlatformEstimator protocol. Measurements arrive in W (``PlatformMeasurement.p_WP``, made
+with the ego pose at the capture time ``t_c``); the relative observation is
+``x_obs = p_WB(t_c) - p_WP`` with ``p_WB(t_c)`` interpolated from the ego samples the filter was given, so
+the ego position cancels as it does in the paper's camera-relative measurement. Outputs go back to W with
+the ego position at the filter's time: ``p_WP = p_WB(t_f) - x``; the velocity is the velocity estimator's,
+the heading its heading; ``predict_ahead`` is constant velocity (the paper's platform model). Position
+covariance ``P + |t - t_f| sigma_IMU^2 I`` horizontally (the ego position is taken as known: relative
+guidance does not need it).
+
+Driving it. Call :meth:`SduKalmanFilter.set_ego` with every ego estimate (the paper's ~33 ms PX4 EKF
+output; in alight the pipeline's controller tick) - each call runs the prediction up to the ego's time
+with the inputs of the previous call and then holds the new ones. :meth:`predict` moves the filter on to a
+later time with the held inputs (for callers without an ego stream: without any ``set_ego`` the UAV is
+taken at rest at the origin and the state is minus the pad's position). :meth:`update` fuses a
+measurement: a capture time later than the filter's first moves the filter there; one earlier (the usual
+case: detection latency) is brought to the filter's time by the shift above. ``delay_s`` replaces
+``t_f - t_c`` by a fixed delay as the paper does with a measured processing time.
+
+Initialisation: the first measurement sets ``x`` (shifted like the others) and ``P = p0 I`` (the paper's
+``P = I``). ``initialized`` (the protocol's "has a heading and speed") follows the velocity estimator.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from alight.errors import EstimationError
+from alight.estimation.platform_velocity import PlatformVelocityConfig, PlatformVelocityEstimator
+from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
+
+
+@dataclass(frozen=True, kw_only=True)
+class SduKfConfig:
+    """Parameters of :class:`SduKalmanFilter` (the paper gives the forms of Q and R, not their values)."""
+
+    sigma_imu_mps: float = 0.1
+    """``sigma_IMU`` of eq. (1), ``Q = dt sigma_IMU^2 I`` (m/s; a random walk of the relative position
+    of this density, m/sqrt(s)): the standard deviation of the PX4 EKF's velocity."""
+    sigma_obs_m: float = 0.1
+    """``sigma_obs`` of eq. (2), ``R = sigma_obs^2 I`` (m)."""
+    p0_m2: float = 1.0
+    """Initial covariance ``P = p0 I`` (m^2); the paper's ``P = I``."""
+    compensate_delay: bool = True
+    """Shift measurements by the relative motion during the detection delay (eq. 2's dx_obs, dy_obs)."""
+    delay_s: float | None = None
+    """Fixed detection delay ``dt_obs`` (s); None: the filter's time minus the capture time."""
+    compensation_velocity: Literal["relative", "uav"] = "relative"
+    """Shift by the relative motion (UAV minus platform) or by the UAV's alone (the paper's wording)."""
+    use_measurement_covariance: bool = False
+    """Use the measurement's horizontal covariance as ``R`` instead of ``sigma_obs^2 I``."""
+    capture_time_gain: bool = True
+    """With compensation, compute the gain from ``P`` at the capture time (exact, see the module
+    docstring); False: from ``P`` at the filter's time, as eq. (2) reads."""
+    use_acceleration: bool = True
+    """Use the UAV's acceleration in ``G u`` (the paper does)."""
+    history_s: float = 2.0
+    """How far back the ego samples are kept (s): the longest usable detection delay."""
+    velocity: PlatformVelocityConfig = field(default_factory=PlatformVelocityConfig)
+    """The platform velocity estimator's parameters."""
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_imu_mps", "sigma_obs_m", "p0_m2", "history_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {v}")
+        if self.delay_s is not None and not (math.isfinite(self.delay_s) and self.delay_s >= 0.0):
+            raise ValueError(f"delay_s must be finite and >= 0 or None, got {self.delay_s}")
+        if self.compensation_velocity not in ("relative", "uav"):
+            raise ValueError(
+                f"compensation_velocity must be 'relative' or 'uav', got {self.compensation_velocity}"
+            )
+
+
+class SduKalmanFilter:
+    """Paper 004's relative-position Kalman filter as a :class:`alight.estimation.PlatformEstimator`."""
+
+    def __init__(self, config: SduKfConfig | None = None) -> None:
+        self.config = config if config is not None else SduKfConfig()
+        self.velocity_estimator = PlatformVelocityEstimator(self.config.velocity)
+        self.reset()
+
+    # ---- lifecycle --------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.velocity_estimator.reset()
+        self._x0 = self._x1 = 0.0
+        # P at the capture time of the last measurement (t_cap); at the filter's time it is
+        # P + (t_f - t_cap) sigma_IMU^2 I, as eq. (1) adds Q = dt sigma_IMU^2 I with F = I
+        self._p00 = self._p01 = self._p11 = 0.0
+        self._tcap = math.nan
+        self._has = False
+        self._tf = math.nan
+        self._t_meas = math.nan
+        self._z = 0.0
+        self._var_z = 0.0
+        # held inputs: UAV velocity and acceleration (horizontal), platform velocity
+        self._u = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        # knots of the prediction: times, and at each the cumulative UAV and platform displacements and
+        # the inputs that hold from it on (for the displacement at any past time)
+        self._kt: list[float] = []
+        self._kd: list[tuple[float, float, float, float, float, float, float, float, float, float]] = []
+        # ego samples: times and positions (for p_WB at a capture time)
+        self._et: list[float] = []
+        self._ep: list[tuple[float, float, float]] = []
+        self._ev = (0.0, 0.0, 0.0)
+        self._ea = (0.0, 0.0, 0.0)
+        self._du = [0.0, 0.0]
+        self._dp = [0.0, 0.0]
+        self.n_updates = 0
+        """Measurements fused."""
+        self.n_too_old = 0
+        """Measurements captured before the kept history, ignored."""
+        self.last_innovation = np.zeros(2)
+        """Innovation ``e`` of the last update (m), (2,)."""
+        self.last_nis = math.nan
+        """``e^T S^-1 e`` of the last update (chi-square with 2 dof when consistent)."""
+        self.last_delay_s = math.nan
+        """``dt_obs`` of the last update (s)."""
+
+    # ---- inputs -----------------------------------------------------------------------------------
+
+    def set_ego(self, ego: EgoState) -> None:
+        """The UAV's state at ``ego.t``: predicts up to ``ego.t`` with the inputs held so far, then holds
+        ``ego.v_WB`` and ``ego.a_WB`` (and the velocity estimator's current output) as the new inputs."""
+        t = float(ego.t)
+        p = ego.p_WB.tolist()
+        v = ego.v_WB.tolist()
+        a = ego.a_WB.tolist() if self.config.use_acceleration else [0.0, 0.0, 0.0]
+        # one sum catches any NaN or inf (at 50-200 Hz the per-array checks cost more than the filter)
+        if not math.isfinite(t + sum(p) + sum(v) + sum(a)):
+            raise EstimationError(f"SduKalmanFilter.set_ego: non-finite ego state at t={t}")
+        if math.isnan(self._tf):
+            self._tf = t
+        elif t > self._tf:
+            self._advance(t)
+        self._ev = (v[0], v[1], v[2])
+        self._ea = (a[0], a[1], a[2])
+        if not self._et or t > self._et[-1]:
+            self._et.append(t)
+            self._ep.append((p[0], p[1], p[2]))
+        self._hold_inputs()
+        self._trim()
+
+    def _hold_inputs(self) -> None:
+        mx, my = self.velocity_estimator.velocity_xy()
+        self._u = [self._ev[0], self._ev[1], self._ea[0], self._ea[1], mx, my]
+        u = self._u
+        knot = (self._du[0], self._du[1], self._dp[0], self._dp[1], u[0], u[1], u[2], u[3], u[4], u[5])
+        if self._kt and self._kt[-1] == self._tf:
+            self._kd[-1] = knot
+        else:
+            self._kt.append(self._tf)
+            self._kd.append(knot)
+
+    def _trim(self) -> None:
+        horizon = self._tf - self.config.history_s
+        # keep one entry at or before the horizon so the whole window can be interpolated
+        k = bisect.bisect_right(self._kt, horizon) - 1
+        if k > 0:
+            del self._kt[:k]
+            del self._kd[:k]
+        k = bisect.bisect_right(self._et, horizon) - 1
+        if k > 0:
+            del self._et[:k]
+            del self._ep[:k]
+
+    def _advance(self, t: float) -> None:
+        """Eq. (1) from the filter's time to ``t`` with the held inputs (one step)."""
+        dt = t - self._tf
+        vx, vy, ax, ay, mx, my = self._u
+        hx = vx * dt + 0.5 * ax * dt * dt
+        hy = vy * dt + 0.5 * ay * dt * dt
+        self._du[0] += hx
+        self._du[1] += hy
+        self._dp[0] += mx * dt
+        self._dp[1] += my * dt
+        if self._has:
+            self._x0 += hx - mx * dt
+            self._x1 += hy - my * dt
+        self._tf = t
+        self._kt.append(t)
+        u = self._u
+        self._kd.append(
+            (self._du[0], self._du[1], self._dp[0], self._dp[1], u[0], u[1], u[2], u[3], u[4], u[5])
+        )
+
+    def predict(self, t: float) -> None:
+        """Move the filter on to ``t`` (s) with the held inputs; earlier times are ignored."""
+        if not math.isfinite(t):
+            raise EstimationError(f"SduKalmanFilter.predict: time must be finite, got {t}")
+        if math.isnan(self._tf):
+            self._tf = float(t)
+            self._hold_inputs()
+        elif t > self._tf:
+            self._advance(float(t))
+            self._trim()
+
+    # ---- history lookups --------------------------------------------------------------------------
+
+    def _displacement(self, t: float) -> tuple[float, float, float, float]:
+        """Cumulative UAV and platform displacements (m) at ``t`` inside the kept window (exact for the
+        piecewise-constant inputs the prediction used)."""
+        k = bisect.bisect_right(self._kt, t) - 1
+        k = max(k, 0)
+        d = self._kd[k]
+        tau = t - self._kt[k]
+        return (
+            d[0] + d[4] * tau + 0.5 * d[6] * tau * tau,
+            d[1] + d[5] * tau + 0.5 * d[7] * tau * tau,
+            d[2] + d[8] * tau,
+            d[3] + d[9] * tau,
+        )
+
+    def _ego_position(self, t: float) -> tuple[float, float, float]:
+        """``p_WB`` at ``t``: linear between ego samples (as the pipeline's ego history), extrapolated with
+        the held velocity and acceleration after the last one; the origin without ego samples."""
+        et = self._et
+        if not et:
+            return (0.0, 0.0, 0.0)
+        if t >= et[-1]:
+            tau = t - et[-1]
+            p, v, a = self._ep[-1], self._ev, self._ea
+            return (
+                p[0] + v[0] * tau + 0.5 * a[0] * tau * tau,
+                p[1] + v[1] * tau + 0.5 * a[1] * tau * tau,
+                p[2] + v[2] * tau + 0.5 * a[2] * tau * tau,
+            )
+        k = bisect.bisect_right(et, t) - 1
+        if k < 0:
+            return self._ep[0]
+        s = (t - et[k]) / (et[k + 1] - et[k])
+        p0, p1 = self._ep[k], self._ep[k + 1]
+        return (p0[0] + s * (p1[0] - p0[0]), p0[1] + s * (p1[1] - p0[1]), p0[2] + s * (p1[2] - p0[2]))
+
+    # ---- correction -------------------------------------------------------------------------------
+
+    def update(self, measurement: PlatformMeasurement) -> bool:
+        """Eq. (2) with a measurement (``measurement.t`` its capture time). True when fused; False when
+        it was captured before the kept history (``history_s``)."""
+        c = self.config
+        t_c = float(measurement.t)
+        p = measurement.p_WP.tolist()
+        cov = measurement.cov_p_WP
+        if not math.isfinite(t_c):  # PlatformMeasurement itself refuses non-finite arrays
+            raise EstimationError(f"SduKalmanFilter.update: non-finite capture time {t_c}")
+        if math.isnan(self._tf):
+            self.predict(t_c)
+        elif t_c > self._tf:
+            self.predict(t_c)
+        if t_c < self._tf - c.history_s:
+            self.n_too_old += 1
+            return False
+        self.velocity_estimator.update(t_c, measurement.p_WP, cov, measurement.yaw)
+        pb = self._ego_position(t_c)
+        zx, zy = pb[0] - p[0], pb[1] - p[1]  # x_obs: the UAV relative to the pad at t_c
+        dt_obs = (self._tf - t_c) if c.delay_s is None else c.delay_s
+        self.last_delay_s = dt_obs
+        if c.compensate_delay and dt_obs > 0.0:
+            t_from = self._tf - dt_obs
+            if t_from < self._kt[0]:
+                t_from = self._kt[0]
+            a = self._displacement(t_from)
+            b = self._displacement(self._tf)
+            dx, dy = b[0] - a[0], b[1] - a[1]
+            if c.compensation_velocity == "relative":
+                dx -= b[2] - a[2]
+                dy -= b[3] - a[3]
+            zx += dx
+            zy += dy
+        if c.use_measurement_covariance:
+            r00, r01, r11 = float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1])
+        else:
+            r00, r01, r11 = c.sigma_obs_m**2, 0.0, c.sigma_obs_m**2
+        self._z = p[2]
+        self._var_z = float(cov[2, 2])
+        self._t_meas = t_c
+        self.n_updates += 1
+        # the time the (shifted) measurement is weighed at: its capture time, or the filter's time
+        t_gain = self._tf
+        if c.compensate_delay and c.capture_time_gain:
+            t_gain = max(self._tf - max(dt_obs, 0.0), self._tcap if self._has else -math.inf)
+        if not self._has:
+            self._x0, self._x1 = zx, zy
+            self._p00, self._p01, self._p11 = c.p0_m2, 0.0, c.p0_m2
+            self._tcap = t_gain
+            self._has = True
+            self._hold_inputs()
+            return True
+        # eq. (2): e = z - H x, S = H P H^T + R, K = P H^T S^-1, x += K e, P = (I - K H) P, with P (eq. 1)
+        # at t_gain
+        e0, e1 = zx - self._x0, zy - self._x1
+        q = (t_gain - self._tcap) * c.sigma_imu_mps**2
+        P00, P01, P11 = self._p00 + q, self._p01, self._p11 + q
+        s00, s01, s11 = P00 + r00, P01 + r01, P11 + r11
+        det = s00 * s11 - s01 * s01
+        if not det > 0.0:
+            raise EstimationError(f"SduKalmanFilter.update: innovation covariance not positive at t={t_c}")
+        i00, i01, i11 = s11 / det, -s01 / det, s00 / det
+        k00 = P00 * i00 + P01 * i01
+        k01 = P00 * i01 + P01 * i11
+        k10 = P01 * i00 + P11 * i01
+        k11 = P01 * i01 + P11 * i11
+        self._x0 += k00 * e0 + k01 * e1
+        self._x1 += k10 * e0 + k11 * e1
+        n00 = (1.0 - k00) * P00 - k01 * P01
+        n01 = (1.0 - k00) * P01 - k01 * P11
+        n10 = -k10 * P00 + (1.0 - k11) * P01
+        n11 = -k10 * P01 + (1.0 - k11) * P11
+        self._p00, self._p01, self._p11 = n00, 0.5 * (n01 + n10), n11
+        self._tcap = t_gain
+        self.last_innovation = np.array([e0, e1])
+        self.last_nis = e0 * (i00 * e0 + i01 * e1) + e1 * (i01 * e0 + i11 * e1)
+        # the platform velocity just changed: hold it from now on
+        self._hold_inputs()
+        return True
+
+    # ---- outputs ----------------------------------------------------------------------------------
+
+    @property
+    def initialized(self) -> bool:
+        """True once the platform's heading and speed are estimated (the velocity estimator's)."""
+        return self._has and self.velocity_estimator.initialized
+
+    @property
+    def has_measurement(self) -> bool:
+        """True once a measurement was fused (``state`` gives a position)."""
+        return self._has
+
+    @property
+    def t_filter(self) -> float:
+        """The filter's time (s): the latest of the ego samples, ``predict`` and capture times."""
+        return self._tf
+
+    @property
+    def x(self) -> FloatArray:
+        """Relative position ``p_WB - p_WP`` (m, W axes), (2,), at ``t_filter``."""
+        return np.array([self._x0, self._x1])
+
+    @property
+    def covariance(self) -> FloatArray:
+        """``P`` (m^2), (2, 2), at ``t_filter``."""
+        q = (self._tf - self._tcap) * self.config.sigma_imu_mps**2 if self._has else 0.0
+        return np.array([[self._p00 + q, self._p01], [self._p01, self._p11 + q]])
+
+    @property
+    def platform_velocity(self) -> FloatArray:
+        """The platform velocity the prediction uses from now on (m/s, W), (3,)."""
+        return np.array([self._u[4], self._u[5], 0.0])
+
+    def _pad_at_filter_time(self) -> tuple[float, float]:
+        pb = self._ego_position(self._tf)
+        return pb[0] - self._x0, pb[1] - self._x1
+
+    def state(self, t: float) -> PlatformEstimate:
+        """The platform at ``t`` (s): at the filter's time from the ego position and the relative state,
+        moved by the platform velocity to ``t``. Raises EstimationError before any measurement."""
+        if not self._has:
+            raise EstimationError("SduKalmanFilter.state: no measurement yet")
+        if not math.isfinite(t):
+            raise EstimationError(f"SduKalmanFilter.state: time must be finite, got {t}")
+        tau = t - self._tf
+        px, py = self._pad_at_filter_time()
+        mx, my = self._u[4], self._u[5]
+        q = (self._tf - self._tcap + abs(tau)) * self.config.sigma_imu_mps**2
+        cov = np.array(
+            [[self._p00 + q, self._p01, 0.0], [self._p01, self._p11 + q, 0.0], [0.0, 0.0, self._var_z]]
+        )
+        return PlatformEstimate(
+            t=t,
+            p_WP=np.array([px + mx * tau, py + my * tau, self._z]),
+            v_WP=np.array([mx, my, 0.0]),
+            a_WP=np.zeros(3),
+            yaw=self.velocity_estimator.heading,
+            cov_p_WP=cov,
+            t_last_measurement=self._t_meas,
+        )
+
+    def predict_ahead(self, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Positions (k, 3) m, velocities (k, 3) m/s, accelerations (k, 3) (zero) and headings (k,) rad at
+        the absolute ``times`` (k,) (s): constant platform velocity from the filter's time."""
+        ts = np.asarray(times, dtype=np.float64)
+        if ts.ndim != 1:
+            raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
+        if not self._has:
+            raise EstimationError("SduKalmanFilter.predict_ahead: no measurement yet")
+        px, py = self._pad_at_filter_time()
+        mx, my = self._u[4], self._u[5]
+        k = ts.shape[0]
+        tau = ts - self._tf
+        p = np.empty((k, 3))
+        p[:, 0] = px + mx * tau
+        p[:, 1] = py + my * tau
+        p[:, 2] = self._z
+        v = np.zeros((k, 3))
+        v[:, 0] = mx
+        v[:, 1] = my
+        return p, v, np.zeros((k, 3)), np.full(k, self.velocity_estimator.heading)
+
+
+__all__ = ["SduKalmanFilter", "SduKfConfig"]
