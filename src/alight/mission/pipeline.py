@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from alight.control.high_level import HighLevelController
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
@@ -33,6 +32,7 @@ from alight.types import (
 )
 
 if TYPE_CHECKING:  # the Protocols, for annotations only
+    from alight.control import Controller
     from alight.estimation import PlatformEstimator
     from alight.perception import Detector, Geolocator
 
@@ -108,7 +108,7 @@ class Pipeline:
         platform_estimator: PlatformEstimator,
         mission: Mission,
         guidance: Guidance,
-        controller: HighLevelController,
+        controller: Controller,
         detector: Detector | None = None,
     ) -> None:
         self.ego_estimator = ego_estimator
@@ -235,6 +235,10 @@ class Pipeline:
         ego = self.ego()
         target = self.target(t)
         self.status = self.mission.step(t, ego, target, self.range_m)
+        if self.status.changed and self.status.mode is Mode.TAKEOFF:
+            # Standing on the ground is a disturbance to an adaptive or integrating controller (the
+            # ground holds the vehicle against a reference below it): start the flight from zero.
+            self.controller.reset()
         if self.status.changed and self.status.mode is Mode.LAND and self.stats.t_landing_start is None:
             self.stats.t_landing_start = t
         self.guidance.update(

@@ -21,6 +21,7 @@ from typing import Any, Protocol, runtime_checkable
 from alight.perception.aruco import ArucoPadDetector, merge_observations
 from alight.perception.falanga_tag import FalangaDetectorConfig, FalangaTagDetector
 from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
+from alight.perception.homography_geolocation import HomographyGeolocator
 from alight.perception.pnp import PnpResult, solve_pnp
 from alight.types import FloatArray, Observation, PlatformMeasurement
 
@@ -78,6 +79,7 @@ any :class:`FalangaDetectorConfig` field), ``aruco`` (``size_m``, ``pad``, ``dic
 GEOLOCATORS: dict[str, Callable[..., Geolocator]] = {
     "pnp": PnpGeolocator,
     "direct": DirectGeolocator,
+    "homography": HomographyGeolocator,
 }
 """Geolocators by name: ``pnp`` (``camera, mount, sigma_px, sigma_ego_pos_m, sigma_ego_att_rad,
 yaw_fold, max_reprojection_px``) and ``direct`` (``mount, sigma_ego_pos_m, sigma_ego_att_rad,
@@ -92,6 +94,7 @@ __all__ = [
     "FalangaDetectorConfig",
     "FalangaTagDetector",
     "Geolocator",
+    "HomographyGeolocator",
     "PnpGeolocator",
     "PnpResult",
     "merge_observations",
