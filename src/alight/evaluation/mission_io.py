@@ -10,6 +10,7 @@ from typing import Any
 
 from alight.errors import InputError
 from alight.evaluation.log import save_arrays
+from alight.evaluation.replay import REPLAY_GIF, FrameRecorder, write_replay
 from alight.evaluation.report import write_mission_report
 from alight.evaluation.runner import MissionRun, run_mission
 from alight.scenario import Scenario
@@ -36,17 +37,30 @@ def write_result(out_dir: Path, result: dict[str, Any]) -> Path:
     return path
 
 
-def fly_to_dir(scenario: Scenario, out_dir: str | Path, *, report: bool = True) -> MissionRun:
-    """Fly ``scenario`` and write its outputs into ``out_dir`` (created if needed)."""
+def fly_to_dir(
+    scenario: Scenario, out_dir: str | Path, *, report: bool = True, replay: bool = False
+) -> MissionRun:
+    """Fly ``scenario`` and write its outputs into ``out_dir`` (created if needed); with ``replay`` also
+    the animated replay ``replay.gif`` (camera view with detections beside a top view)."""
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
-    run = run_mission(scenario, record=True)
+    recorder = FrameRecorder() if replay else None
+    run = run_mission(scenario, record=True, frame_sink=recorder)
     if run.log is None:  # record=True always logs; this guards a future change of run_mission
         raise RuntimeError("run_mission returned no log")
     save_arrays(run.log, out)
+    if replay and recorder is not None:
+        r = run.result
+        write_replay(
+            run.log,
+            out / REPLAY_GIF,
+            frames=recorder.frames or None,
+            pad_size_m=scenario.platform.pad_size_m,
+            title=f"{r['preset']} · seed {r['seed']} · {r['outcome']}",
+        )
     if report:
         write_mission_report(out, run.result, run.log, run.events)
     write_result(out, run.result)

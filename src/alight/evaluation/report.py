@@ -309,8 +309,10 @@ def render_mission_html(
     log: Mapping[str, np.ndarray],
     events: Mapping[str, float | None],
     figures: Mapping[str, bytes],
+    replay_gif: str | None = None,
 ) -> str:
-    """The report page as a string; ``figures`` maps a :data:`FIGURES` stem to PNG bytes."""
+    """The report page as a string; ``figures`` maps a :data:`FIGURES` stem to PNG bytes; ``replay_gif``
+    is the relative path of the mission's animated replay, when there is one."""
     esc = html.escape
     outcome = str(result.get("outcome") or "unknown")
     color = OUTCOME_COLORS.get(outcome.lower(), "#59636e")
@@ -359,6 +361,16 @@ def render_mission_html(
             "<figure>",
             f'<img src="data:image/png;base64,{data}" alt="{esc(heading)}">',
             f"<figcaption>{esc(stem)}.png</figcaption>",
+            "</figure>",
+        ]
+
+    if replay_gif:
+        # Linked, not inlined: the GIF is megabytes and sits next to the report in the mission directory.
+        out += [
+            "<h2>Replay</h2>",
+            "<figure>",
+            f'<img src="{esc(replay_gif)}" alt="animated replay of the mission">',
+            f"<figcaption>{esc(replay_gif)}: onboard camera with detections, top view, altitude</figcaption>",
             "</figure>",
         ]
 
@@ -420,5 +432,6 @@ def write_mission_report(
         (out / f"{stem}.png").write_bytes(png)
         figures[stem] = png
     path = out / REPORT_HTML
-    path.write_text(render_mission_html(result, log_arrays, ev, figures), encoding="utf-8")
+    replay = "replay.gif" if (out / "replay.gif").is_file() else None
+    path.write_text(render_mission_html(result, log_arrays, ev, figures, replay), encoding="utf-8")
     return path

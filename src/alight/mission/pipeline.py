@@ -119,6 +119,8 @@ class Pipeline:
         self.guidance = guidance
         self.controller = controller
         self.history = EgoHistory()
+        # Estimators of the relative position (paper 004's filter) take the vehicle's own motion as input.
+        self._feed_ego = getattr(platform_estimator, "set_ego", None)
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -202,6 +204,8 @@ class Pipeline:
         if measurement is None:
             return out
         self._target = None
+        if self._feed_ego is not None:
+            self._feed_ego(self.ego())
         if self.platform_estimator.update(measurement):
             self.stats.measurements += 1
             if self.stats.t_first_detection is None:
@@ -250,6 +254,9 @@ class Pipeline:
         """The command to the low level (at the controller's rate)."""
         ego = self.ego()
         self.history.add(t, ego.p_WB, ego.q_WB)
+        if self._feed_ego is not None:
+            self._feed_ego(ego)
+            self._target = None
         mode = self.status.mode
         if mode in (Mode.LANDED, Mode.IDLE):
             return Command(t, 0.0, _ZERO3, motors_off=True)
