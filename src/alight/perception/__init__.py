@@ -22,7 +22,9 @@ from alight.perception.aruco import ArucoPadDetector, merge_observations
 from alight.perception.falanga_tag import FalangaDetectorConfig, FalangaTagDetector
 from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
 from alight.perception.homography_geolocation import HomographyGeolocator
+from alight.perception.nfold import NFoldConfig, NFoldDetector
 from alight.perception.pnp import PnpResult, solve_pnp
+from alight.perception.sdu_marker import SduMarkerDetector
 from alight.types import FloatArray, Observation, PlatformMeasurement
 
 
@@ -67,14 +69,35 @@ def _apriltag(**kw: Any) -> Detector:
     return ArucoPadDetector(None, **kw)
 
 
+def _nfold(**kw: Any) -> Detector:
+    from alight.pads.sdu_pad import SduPad
+
+    pad = kw.pop("pad", None) or SduPad.default(kw.pop("size_m", 1.5))
+    config = kw.pop("config", None) or NFoldConfig(
+        **{"order": pad.nfold_order, "oriented": pad.nfold_oriented, **kw}
+    )
+    return NFoldDetector(config, tip_P=pad.nfold_center_P)
+
+
+def _sdu(**kw: Any) -> Detector:
+    from alight.pads.sdu_pad import SduPad
+
+    pad = kw.pop("pad", None) or SduPad.default(kw.pop("size_m", 1.5))
+    return SduMarkerDetector(pad, **kw)
+
+
 REGISTRY: dict[str, Callable[..., Detector]] = {
     "falanga": _falanga,
     "aruco": _aruco,
     "apriltag": _apriltag,
+    "nfold": _nfold,
+    "sdu": _sdu,
 }
 """Detectors by name. Factories take keyword overrides: ``falanga`` (``size_m``, ``tag``, ``config`` or
 any :class:`FalangaDetectorConfig` field), ``aruco`` (``size_m``, ``pad``, ``dictionary``, ``parameters``,
-``subpixel_corners``, default True), ``apriltag`` (``dictionary``, ``parameters``)."""
+``subpixel_corners``, default True), ``apriltag`` (``dictionary``, ``parameters``), ``nfold`` (paper 004's
+n-fold marker alone: ``size_m``, ``pad``, ``config`` or any :class:`NFoldConfig` field) and ``sdu`` (the
+n-fold marker plus its three ArUco landmarks: ``size_m``, ``pad``, ``camera``, ``nfold`` ...)."""
 
 GEOLOCATORS: dict[str, Callable[..., Geolocator]] = {
     "pnp": PnpGeolocator,
@@ -95,8 +118,11 @@ __all__ = [
     "FalangaTagDetector",
     "Geolocator",
     "HomographyGeolocator",
+    "NFoldConfig",
+    "NFoldDetector",
     "PnpGeolocator",
     "PnpResult",
+    "SduMarkerDetector",
     "merge_observations",
     "solve_pnp",
 ]
