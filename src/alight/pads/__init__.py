@@ -1,4 +1,4 @@
-"""Landing-pad designs: marker geometry in the pad frame ``P`` and grayscale textures.
+"""Landing-pad designs: marker geometry in the pad frame ``P`` and textures (grayscale or BGR colour).
 
 Pad frame ``P``: origin at the pad centre, z up, x along the platform heading, y to the left. A pad is a
 square of side ``size_m`` on the plane z = 0 of P.
@@ -6,7 +6,10 @@ square of side ``size_m`` on the plane z = 0 of P.
 Texture convention (every design): the pad seen from above, +x (front) at the image top, +y (left) at the
 image left, not mirrored. An ``n x n`` texture (``n = round(size_m * px_per_m)``) maps the P point
 ``(x, y)`` to the pixel ``u = s (size_m/2 - y) - 0.5``, ``v = s (size_m/2 - x) - 0.5`` with
-``s = n / size_m``; ``texture_homography_P_to_px(px_per_m)`` is that map as a 3x3 homography.
+``s = n / size_m``; ``texture_homography_P_to_px(px_per_m)`` is that map as a 3x3 homography. A texture is
+grayscale, shape (n, n), or BGR colour (OpenCV's channel order), shape (n, n, 3); the renderer converts
+either to what it draws (a grey pad in a colour image is replicated, a colour pad in a grey image is
+converted with ``cv2.COLOR_BGR2GRAY``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from numpy.typing import NDArray
 from alight.pads._texture import texture_homography, texture_side_px
 from alight.pads.apriltag_pad import APRILTAG_DICTIONARY, AprilTagPad
 from alight.pads.falanga_tag import FalangaTag
+from alight.pads.red_target import RedTarget
+from alight.pads.sdu_pad import SduPad
 from alight.types import FloatArray
 
 
@@ -33,7 +38,8 @@ class PadDesign(Protocol):
         ...
 
     def texture(self, px_per_m: float) -> NDArray[np.uint8]:
-        """Grayscale texture, shape (n, n), ``n = round(size_m * px_per_m)``."""
+        """Texture, uint8, grayscale of shape (n, n) or BGR of shape (n, n, 3), ``n = round(size_m *
+        px_per_m)``."""
         ...
 
     def texture_homography_P_to_px(self, px_per_m: float) -> FloatArray:
@@ -44,6 +50,8 @@ class PadDesign(Protocol):
 REGISTRY: dict[str, Callable[..., PadDesign]] = {
     "falanga": FalangaTag.default,
     "apriltag": AprilTagPad.default,
+    "red": RedTarget.default,
+    "sdu": SduPad.default,
 }
 """Pad designs by name; each factory takes ``size_m`` (default 1.5 m)."""
 
@@ -53,6 +61,8 @@ __all__ = [
     "AprilTagPad",
     "FalangaTag",
     "PadDesign",
+    "RedTarget",
+    "SduPad",
     "texture_homography",
     "texture_side_px",
 ]

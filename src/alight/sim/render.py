@@ -15,7 +15,9 @@ How a frame is made (all per-pixel work in numba kernels or OpenCV, nothing per 
    noise whose fine detail nothing depends on; this halves the frame time), with nearest-texel lookup
    unless the texture is magnified more than 2x. Rays that do not hit the ground in front show the sky;
    hits farther than ``max_range_m`` show a uniform haze (the texture mean). One mip level serves the
-   whole frame, so ground much farther than the point on the optical axis aliases (towards a horizon).
+   whole frame, so ground much farther than the point on the optical axis aliases (towards a horizon);
+   a camera with rays over 75 deg off its axis (a fisheye: nadir to horizon in one frame) takes a level
+   per ray instead, from an atlas of all levels (:func:`_ground_maps_mip`).
 4. The deck is rendered at full resolution over its bounding box only (found by projecting its outline),
    and copied over the ground where the ray hits the deck rectangle (a hard edge against the ground): the
    pad is never blurred by the half-resolution ground and its edges are where the camera model puts
@@ -23,15 +25,27 @@ How a frame is made (all per-pixel work in numba kernels or OpenCV, nothing per 
 5. Both textures are mip-mapped (area-averaged halvings); each frame picks the level whose texel is just
    below the pixel footprint at the pad (and at the ground point on the optical axis).
 6. Optional effects, in the order a camera produces them: vignetting, motion blur from the body rates
-   over the exposure time, exposure gain and gamma, Gaussian sensor noise.
+   over the exposure time, illumination and exposure gain and gamma (one lookup table), Gaussian sensor
+   noise. Pixels without a ray (outside a fisheye's image circle) are 0 after all of them.
+
+Colour (``RenderOptions.color``): the same steps on BGR images, shape (H, W, 3): OpenCV's remap, pyrUp,
+filter2D and LUT work per channel, and the noise is independent per channel. Textures are stored as BGRA
+and sampled into BGRA buffers, converted to BGR after sampling: OpenCV's remap has SIMD code for 1 and 4
+channels, not 3 (3 to 4 times slower). A grey ground or pad is
+replicated into the three channels, a colour one drawn in a grey image as its luma. The grey path is
+unchanged (same bytes, same speed) when ``color`` is False.
+
+Wide-angle cameras (fisheye, omnidirectional, > 180 deg): any ray direction works (rays that point up
+see the sky, NaN rays are black), and the deck's bounding box comes from projecting its outline also when
+part of it lies behind the image plane, as long as the camera model projects every outline point.
 
 Conventions: world W is ENU z-up; the pad frame P is at ``p_WP`` rotated by ``yaw`` about z; camera C is
 OpenCV's. A camera below the pad plane does not see the deck (the platform's body is not modelled); a
 camera at or below the ground renders as if 1 mm above it.
 
 Speed (``benchmarks/bench_render.py``, one core, noise off, 752 x 480): about 0.5 ms with the pad small
-in view, 1.2-1.4 ms with the pad filling a large part of it. A renderer reuses its buffers: one
-instance per thread.
+in view, 1.2-1.4 ms with the pad filling a large part of it; colour costs about twice that. A renderer
+reuses its buffers: one instance per thread.
 """
 
 from __future__ import annotations
@@ -56,6 +70,7 @@ from alight.types import FloatArray
 # fastmath without nnan / ninf: invalid rays and rays parallel to a plane must still compare false
 _FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _MIN_HEIGHT_M = 1e-3
+_LUMA_BGR = (0.114, 0.587, 0.299)  # OpenCV's COLOR_BGR2GRAY weights
 
 
 @dataclass(frozen=True)
@@ -89,8 +104,39 @@ class RenderOptions:
     """Deck brightness (DN)."""
     pad_px_per_m: float = 1024.0
     """Resolution of the finest deck texture level (px/m): 1 mm, enough for a camera 0.4 m above."""
+    color: bool = False
+    """Render BGR colour images, shape (H, W, 3), instead of grayscale ones, shape (H, W)."""
+    sky_bgr: tuple[int, int, int] | None = None
+    """Colour of the sky in colour images (B, G, R, 0-255); None: ``sky_dn`` in every channel."""
+    illumination_gain_bgr: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    """Gain of the light per channel (B, G, R), applied with ``exposure_gain`` before the gamma: a colour
+    temperature or white-balance error (e.g. (1.2, 1.0, 0.8): cold light, the red target's red channel
+    drops). A grayscale image takes its luma, ``0.114 B + 0.587 G + 0.299 R``."""
+    brightness_drift: float = 0.0
+    """Amplitude of a slow brightness change, in [0, 1): every channel's gain is multiplied by
+    ``1 + brightness_drift * sin(2 pi t_s / brightness_drift_period_s)`` at the time ``t_s`` (s) passed to
+    :meth:`Renderer.render` (clouds passing the sun; 0 = none; no ``t_s``: no drift)."""
+    brightness_drift_period_s: float = 60.0
+    """Period of the brightness drift (s)."""
 
     def __post_init__(self) -> None:
+        try:
+            gains = tuple(float(g) for g in self.illumination_gain_bgr)
+        except (TypeError, ValueError):
+            gains = ()
+        if len(gains) != 3 or not all(math.isfinite(g) and g > 0 for g in gains):
+            raise ValueError(f"RenderOptions.illumination_gain_bgr must be 3 finite gains > 0, got {gains}")
+        object.__setattr__(self, "illumination_gain_bgr", gains)
+        if self.sky_bgr is not None:
+            try:
+                sky = tuple(int(c) for c in self.sky_bgr)
+                ok = len(sky) == 3 and all(0 <= c <= 255 for c in sky)
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(f"RenderOptions.sky_bgr must be 3 ints in [0, 255], got {self.sky_bgr}")
+            object.__setattr__(self, "sky_bgr", sky)
+        object.__setattr__(self, "color", bool(self.color))
         if self.shadow_polygon_P is not None:  # a hashable tuple, whatever array-like was passed
             poly = np.asarray(self.shadow_polygon_P, dtype=np.float64)
             if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not np.isfinite(poly).all():
@@ -107,6 +153,8 @@ class RenderOptions:
             "max_range_m": self.max_range_m > 0,
             "deck_gray_dn": 0 <= self.deck_gray_dn <= 255,
             "pad_px_per_m": self.pad_px_per_m > 0,
+            "brightness_drift": 0 <= self.brightness_drift < 1,
+            "brightness_drift_period_s": self.brightness_drift_period_s > 0,
         }
         for name, ok in checks.items():
             if not ok or not math.isfinite(float(getattr(self, name))):
@@ -142,6 +190,49 @@ def _ground_maps(rx, ry, rz, M, min_den, n, mapx, mapy):  # type: ignore[no-unty
         tv = (m10 * x + m11 * y + m12 * z) * iw
         tu = tu - np.floor(tu * inv_n) * fn
         tv = tv - np.floor(tv * inv_n) * fn
+        far = den >= -min_den
+        invalid = (x == zero) & (y == zero) & (z == zero)
+        special_v = black_v if invalid else (sky_v if den >= zero else haze_v)
+        use_special = far | invalid
+        mapx[i] = one if use_special else tu
+        mapy[i] = special_v if use_special else tv
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", boundscheck=False)
+def _ground_maps_mip(rx, ry, rz, M, min_den, thr, inv_f, size, off, n0, mapx, mapy):  # type: ignore[no-untyped-def]
+    """:func:`_ground_maps` with a mip level per ray, into the atlas of :func:`_ground_atlas`: ``M`` maps
+    to level-0 texels; a ray whose ground hit is at ``a = -d_Wz`` (the cosine of its angle to the nadir)
+    takes level ``k`` = the number of ``thr[1:]`` with ``a <= thr[j]`` (the footprint ``K a^-1.5`` is at
+    least that level's texel), whose texel coordinates are ``(t0 + 0.5) inv_f[k] - 0.5`` wrapped into
+    ``[0, size[k])`` and shifted by the level's column ``off[k]`` in the atlas. Sky, haze and black are
+    rows ``n0 + 1.5``, ``n0 + 3.5``, ``n0 + 5.5`` of level 0's block."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = M[0], M[1], M[2], M[3], M[4], M[5], M[6], M[7], M[8]
+    fn0 = np.float32(n0)
+    one = np.float32(1.0)
+    half = np.float32(0.5)
+    sky_v = fn0 + np.float32(1.5)
+    haze_v = fn0 + np.float32(3.5)
+    black_v = fn0 + np.float32(5.5)
+    zero = np.float32(0.0)
+    L = thr.shape[0]
+    for i in range(rx.shape[0]):
+        x = rx[i]
+        y = ry[i]
+        z = rz[i]
+        den = m20 * x + m21 * y + m22 * z
+        iw = one / den
+        tu = (m00 * x + m01 * y + m02 * z) * iw
+        tv = (m10 * x + m11 * y + m12 * z) * iw
+        a = -den
+        k = 0
+        for j in range(1, L):
+            k += a <= thr[j]
+        f = inv_f[k]
+        n = size[k]
+        tu = (tu + half) * f - half
+        tv = (tv + half) * f - half
+        tu = tu - np.floor(tu / n) * n + off[k]
+        tv = tv - np.floor(tv / n) * n
         far = den >= -min_den
         invalid = (x == zero) & (y == zero) & (z == zero)
         special_v = black_v if invalid else (sky_v if den >= zero else haze_v)
@@ -215,6 +306,7 @@ def _build_deck_pyramid(
     gray: float,
     shadow: tuple[tuple[float, float], ...] | None,
     shadow_gain: float,
+    color: bool = False,
 ) -> tuple[_Level, ...]:
     poly = None if shadow is None else np.asarray(shadow, dtype=np.float64)
     deck: DeckTexture = make_deck_texture(
@@ -226,12 +318,13 @@ def _build_deck_pyramid(
         rng=np.random.default_rng(0),  # the deck's stains are part of the platform, not of a scenario
         shadow_polygon_P=poly,
         shadow_gain=shadow_gain,
+        color=color,
     )
     levels = []
-    img = deck.image
+    img = cv2.cvtColor(deck.image, cv2.COLOR_BGR2BGRA) if color else deck.image
     L, W = deck.length_m, deck.width_m
     while True:
-        rows, cols = img.shape
+        rows, cols = img.shape[:2]
         su, sv = cols / W, rows / L
         H = np.array([[0.0, -su, su * W / 2 - 0.5], [-sv, 0.0, sv * L / 2 - 0.5], [0.0, 0.0, 1.0]])
         levels.append(_Level(img, H, 1.0 / min(su, sv)))
@@ -243,21 +336,35 @@ def _build_deck_pyramid(
     return tuple(levels)
 
 
-def _ground_pyramid(ground: GroundTexture, sky_dn: int) -> tuple[tuple[_Level, ...], int]:
+def _ground_pyramid(
+    ground: GroundTexture, sky: int | tuple[int, int, int], color: bool = False
+) -> tuple[tuple[_Level, ...], int | tuple[int, ...]]:
     """Levels of the tile, each extended by a wrap-around row and column (so bilinear lookups at the
     tile's last texel read the first), and 6 constant rows: sky (n+1, n+2), haze (n+3, n+4) and black
-    (n+5, n+6). Returns the levels and the haze intensity."""
+    (n+5, n+6). Returns the levels and the haze intensity (per channel in colour). ``color``: BGRA
+    levels (a grey tile replicated), else grey (a BGR tile as its luma); ``sky`` a DN or a BGR triple."""
     tile = ground.image
-    haze = int(round(float(tile.mean())))
+    if color and tile.ndim == 2:
+        tile = cv2.cvtColor(tile, cv2.COLOR_GRAY2BGRA)
+    elif color:
+        tile = cv2.cvtColor(tile, cv2.COLOR_BGR2BGRA)
+    elif tile.ndim == 3:
+        tile = cv2.cvtColor(tile, cv2.COLOR_BGR2GRAY)
+    haze: int | tuple[int, ...]
+    if color:
+        haze = tuple(int(round(float(c))) for c in tile[..., :3].reshape(-1, 3).mean(axis=0)) + (255,)
+        sky = (*sky, 255)  # type: ignore[misc]
+    else:
+        haze = int(round(float(tile.mean())))
     levels = []
     m = ground.m_per_px
     while True:
         n = tile.shape[0]
-        ext = np.empty((n + 7, n + 1), np.uint8)
+        ext = np.empty((n + 7, n + 1, *tile.shape[2:]), np.uint8)
         ext[:n, :n] = tile
         ext[n, :n] = tile[0]
         ext[: n + 1, n] = ext[: n + 1, 0]
-        ext[n + 1 : n + 3] = sky_dn
+        ext[n + 1 : n + 3] = sky
         ext[n + 3 : n + 5] = haze
         ext[n + 5 :] = 0
         ext.setflags(write=False)
@@ -268,6 +375,39 @@ def _ground_pyramid(ground: GroundTexture, sky_dn: int) -> tuple[tuple[_Level, .
         tile = cv2.resize(tile, (n // 2, n // 2), interpolation=cv2.INTER_AREA)
         m *= 2.0
     return tuple(levels), haze
+
+
+@dataclass(frozen=True, eq=False)
+class _Atlas:
+    """Every ground level side by side in one image, for a mip level per ray (:func:`_ground_maps_mip`)."""
+
+    image: NDArray[np.uint8]
+    size: NDArray[np.float32]  # tile side of each level (texels)
+    off: NDArray[np.float32]  # first column of each level's block
+    inv_f: NDArray[np.float32]  # 1 / (level texel / level-0 texel)
+    texel_m: NDArray[np.float64]  # texel of each level (m)
+
+
+def _ground_atlas(levels: tuple[_Level, ...]) -> _Atlas:
+    """Level k's extended tile (tile, wrap-around row and column) at columns ``off[k]`` onwards, rows 0 to
+    ``n_k``; below level 0's block its 6 constant rows (sky, haze, black) across the whole width."""
+    n0 = levels[0].image.shape[0] - 7
+    sizes = [lev.image.shape[1] - 1 for lev in levels]
+    offs = np.concatenate([[0], np.cumsum([n + 1 for n in sizes])[:-1]])
+    ch = levels[0].image.shape[2:]
+    img = np.zeros((n0 + 7, int(sum(n + 1 for n in sizes)), *ch), np.uint8)
+    for lev, n, o in zip(levels, sizes, offs, strict=True):
+        img[: n + 1, o : o + n + 1] = lev.image[: n + 1]
+    for r in (n0 + 1, n0 + 3, n0 + 5):  # the constant rows, a pair per value
+        img[r : r + 2] = levels[0].image[r, 0]
+    img.setflags(write=False)
+    return _Atlas(
+        img,
+        np.array(sizes, np.float32),
+        offs.astype(np.float32),
+        np.array([n / n0 for n in sizes], np.float32),
+        np.array([lev.texel_m for lev in levels]),
+    )
 
 
 def _ground_H(m_per_px: float, factor: float) -> FloatArray:
@@ -372,7 +512,16 @@ def _unproject_grid(camera: CameraModel, pyrup: bool) -> tuple:  # type: ignore[
     rc = camera.unproject(c)
     pixel_angle = float(np.arccos(np.clip(rc[0] @ rc[1], -1.0, 1.0)))
     if not (pixel_angle > 0):
-        raise ValueError("the camera has no valid ray at the image centre")
+        # no ray at the image centre (a catadioptric camera's mirror hole, an off-centre image circle):
+        # the angle between neighbours at the valid pixel pair of the middle row closest to the centre
+        row = np.stack([rx[H // 2], ry[H // 2], rz[H // 2]], axis=1).astype(np.float64)
+        ok = np.flatnonzero(np.any(row[:-1] != 0, axis=1) & np.any(row[1:] != 0, axis=1))
+        if len(ok):
+            j = int(ok[np.argmin(np.abs(ok - (W - 1) / 2))])
+            a, b = row[j], row[j + 1]
+            pixel_angle = float(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b))
+    if not (pixel_angle > 0):
+        raise ValueError("the camera has no valid ray on its middle image row")
     for a in (rx, ry, rz, hx, hy, hz):
         a.setflags(write=False)
     return (rx, ry, rz, hx, hy, hz, pixel_angle)
@@ -387,10 +536,12 @@ class _Buffers:
     pmy: NDArray[np.float32] = field(repr=False)
     mask: NDArray[np.uint8] = field(repr=False)
     tmp: NDArray[np.uint8] = field(repr=False)
+    half4: NDArray[np.uint8] | None = field(default=None, repr=False)  # colour: BGRA samples
+    tmp4: NDArray[np.uint8] | None = field(default=None, repr=False)
 
 
 class Renderer:
-    """Renders grayscale images of the ground and the platform's pad through a camera model.
+    """Renders grayscale or BGR colour images of the ground and the platform's pad through a camera model.
 
     ``camera``: any :class:`~alight.cameras.CameraModel`; ``ground_texture``: the tileable ground;
     ``pad``: a :class:`~alight.pads.PadDesign`; ``options``: :class:`RenderOptions`; ``rng``: the
@@ -426,9 +577,24 @@ class Renderer:
         self._rx, self._ry, self._rz, self._hx, self._hy, self._hz, self._pixel_angle = rays
         H2, W2 = self._half_shape = ((H + 1) // 2, (W + 1) // 2)
 
+        # rays with z_C <= 0 (a field of view over 180 deg), rays over 75 deg off the optical axis (a
+        # fisheye's), and pixels without a ray
+        valid = (self._rx != 0) | (self._ry != 0) | (self._rz != 0)
+        self._wide = bool(np.any((self._rz <= 0) & valid))
+        fisheye = bool(np.any((self._rz < math.cos(math.radians(75.0))) & valid))
+
         # 2. textures
-        self._glevels, self._haze = _ground_pyramid(ground_texture, int(opt.sky_dn))
-        self._dlevels = _deck_pyramid(
+        self._color = bool(opt.color)
+        self._chan: tuple[int, ...] = (3,) if self._color else ()
+        C = 3 if self._color else 1
+        sky: int | tuple[int, int, int] = int(opt.sky_dn)
+        if self._color:
+            sky = opt.sky_bgr if opt.sky_bgr is not None else (int(opt.sky_dn),) * 3
+        self._glevels, self._haze = _ground_pyramid(ground_texture, sky, self._color)
+        # a fisheye sees from the nadir to the horizon at once: one level for the frame would alias the
+        # far ground badly, so it picks a level per ray from an atlas of all levels
+        self._atlas = _ground_atlas(self._glevels) if fisheye else None
+        deck_args: tuple[object, ...] = (
             pad,
             float(opt.pad_px_per_m),
             float(opt.deck_length_m),
@@ -437,8 +603,9 @@ class Renderer:
             opt.shadow_polygon_P,
             float(opt.shadow_gain),
         )
+        self._dlevels = _deck_pyramid(*deck_args, True) if self._color else _deck_pyramid(*deck_args)
         L0 = self._dlevels[0]
-        rows0, cols0 = L0.image.shape
+        rows0, cols0 = L0.image.shape[:2]
         Hinv = np.linalg.inv(L0.H)
         edge = np.array([[-0.5, -0.5], [cols0 - 0.5, -0.5], [cols0 - 0.5, rows0 - 0.5], [-0.5, rows0 - 0.5]])
         q = np.c_[edge, np.ones(4)] @ Hinv.T
@@ -451,10 +618,8 @@ class Renderer:
         )
 
         # 3. effects
-        lut = np.arange(256, dtype=np.float64) / 255.0
-        lut = 255.0 * np.clip(lut * opt.exposure_gain, 0.0, 1.0) ** opt.gamma
-        self._lut = np.clip(np.rint(lut), 0, 255).astype(np.uint8)
-        self._lut_identity = bool(np.all(self._lut == np.arange(256)))
+        self._drift_factor = 1.0
+        self._lut, self._lut_identity = self._make_lut(1.0)
         self._vignette: NDArray[np.uint8] | None = None
         if opt.vignetting > 0:
             # cos^4 of the angle to the optical axis (unit rays; 0 past 90 deg and for pixels without a ray)
@@ -463,6 +628,13 @@ class Renderer:
             gain = 1.0 - opt.vignetting * (1.0 - cos4) / max(1.0 - lo, 1e-9)
             # as uint8 (gain x 255): a uint8 x uint8 multiply is several times faster than one by float32
             self._vignette = np.clip(np.rint(255.0 * gain), 0, 255).astype(np.uint8)
+            if self._color:
+                self._vignette = cv2.cvtColor(self._vignette, cv2.COLOR_GRAY2BGR)
+        # pixels without a ray are black after every effect (blur, pyrUp and noise would spill into them)
+        self._valid: NDArray[np.uint8] | None = None
+        if not valid.all():
+            v8 = np.where(valid, np.uint8(255), np.uint8(0))
+            self._valid = cv2.cvtColor(v8, cv2.COLOR_GRAY2BGR) if self._color else v8
         # sensor noise: one bank of Gaussian samples twice the image size, from which each frame takes a
         # window at a random offset (drawing 360 k normals per frame would cost 4 ms). Stored as its
         # positive and negative parts in uint8, so adding it is two saturating uint8 operations, which
@@ -471,7 +643,8 @@ class Renderer:
         self._noise_neg: NDArray[np.uint8] | None = None
         if opt.noise_sigma_dn > 0 and rng is not None:
             bank = np.rint(
-                rng.standard_normal((2 * H, 2 * W), dtype=np.float32) * np.float32(opt.noise_sigma_dn)
+                rng.standard_normal((2 * H, 2 * W, *self._chan), dtype=np.float32)
+                * np.float32(opt.noise_sigma_dn)
             )
             self._noise_pos = np.clip(bank, 0, 255).astype(np.uint8)
             self._noise_neg = np.clip(-bank, 0, 255).astype(np.uint8)
@@ -479,12 +652,34 @@ class Renderer:
         self._buf = _Buffers(
             gmx=np.empty(H2 * W2, np.float32),
             gmy=np.empty(H2 * W2, np.float32),
-            half=np.empty((H2, W2), np.uint8),
+            half=np.empty((H2, W2, *self._chan), np.uint8),
             pmx=np.empty(H * W, np.float32),
             pmy=np.empty(H * W, np.float32),
             mask=np.empty(H * W, np.uint8),
-            tmp=np.empty(H * W, np.uint8),
+            tmp=np.empty(H * W * C, np.uint8),
+            half4=np.empty((H2, W2, 4), np.uint8) if self._color else None,
+            tmp4=np.empty(H * W * 4, np.uint8) if self._color else None,
         )
+
+    def _make_lut(self, drift: float) -> tuple[NDArray[np.uint8], bool]:
+        """The lookup table of exposure, illumination (times ``drift``) and gamma: shape (256,) for grey,
+        (1, 256, 3) per channel for colour; and whether it is the identity."""
+        opt = self.options
+        x = np.arange(256, dtype=np.float64) / 255.0
+        illum = opt.illumination_gain_bgr
+        if self._color:
+            g = opt.exposure_gain * drift * np.asarray(illum)
+            lut = 255.0 * np.clip(x[:, None] * g[None, :], 0.0, 1.0) ** opt.gamma
+            out = np.clip(np.rint(lut), 0, 255).astype(np.uint8).reshape(1, 256, 3)
+            return out, bool(np.all(out == np.arange(256)[None, :, None]))
+        gain = opt.exposure_gain
+        if illum != (1.0, 1.0, 1.0):
+            gain = gain * float(np.dot(illum, _LUMA_BGR))
+        if drift != 1.0:
+            gain = gain * drift
+        lut = 255.0 * np.clip(x * gain, 0.0, 1.0) ** opt.gamma
+        out = np.clip(np.rint(lut), 0, 255).astype(np.uint8)
+        return out, bool(np.all(out == np.arange(256)))
 
     # ------------------------------------------------------------------------------------------------
 
@@ -494,12 +689,16 @@ class Renderer:
         R_WC: FloatArray,
         platform_pose: tuple[FloatArray, float],
         w_WB_B: FloatArray | None = None,
+        *,
+        t_s: float | None = None,
     ) -> NDArray[np.uint8]:
-        """The camera image, uint8, shape (height, width), a new array on every call.
+        """The camera image, uint8, shape (height, width) (grey) or (height, width, 3) (BGR, with
+        ``RenderOptions.color``), a new array on every call.
 
         ``p_WC`` (3,) camera centre in W (m); ``R_WC`` (3, 3) camera orientation; ``platform_pose`` =
         ``(p_WP (3,), yaw)``, the pad centre in W (m, its z is the deck height) and the platform heading
-        (rad); ``w_WB_B`` (3,) body rates (rad/s) for the motion blur (ignored when the exposure time is 0).
+        (rad); ``w_WB_B`` (3,) body rates (rad/s) for the motion blur (ignored when the exposure time is 0);
+        ``t_s`` the capture time (s) for the brightness drift (ignored when there is none).
         """
         p_WC = np.asarray(p_WC, dtype=np.float64)
         R_WC = np.asarray(R_WC, dtype=np.float64)
@@ -511,8 +710,17 @@ class Renderer:
             raise ValueError("render needs a finite camera pose and platform pose")
         if not math.isfinite(yaw):
             raise ValueError(f"platform yaw must be finite, got {yaw}")
+        opt = self.options
+        if opt.brightness_drift > 0 and t_s is not None:
+            t = float(t_s)
+            if not math.isfinite(t):
+                raise ValueError(f"t_s must be finite, got {t_s}")
+            drift = 1.0 + opt.brightness_drift * math.sin(2.0 * math.pi * t / opt.brightness_drift_period_s)
+            if drift != self._drift_factor:
+                self._drift_factor = drift
+                self._lut, self._lut_identity = self._make_lut(drift)
         H, W = self.height, self.width
-        out = np.empty((H, W), np.uint8)
+        out = np.empty((H, W, *self._chan), np.uint8)
 
         deck = self._deck_maps(p_WC, R_WC, p_WP, yaw)
         if deck is not None and deck[0] == (0, H, 0, W) and deck[2] == H * W:
@@ -520,7 +728,12 @@ class Renderer:
             b = self._buf
             lev = deck[1]
             mx, my = b.pmx.reshape(H, W), b.pmy.reshape(H, W)
-            cv2.remap(lev.image, mx, my, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_REPLICATE)
+            if b.tmp4 is None:
+                cv2.remap(lev.image, mx, my, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_REPLICATE)
+            else:
+                t4 = b.tmp4.reshape(H, W, 4)
+                cv2.remap(lev.image, mx, my, cv2.INTER_LINEAR, dst=t4, borderMode=cv2.BORDER_REPLICATE)
+                cv2.cvtColor(t4, cv2.COLOR_BGRA2BGR, dst=out)
         else:
             self._draw_ground(p_WC, R_WC, out)
             if deck is not None:
@@ -544,27 +757,46 @@ class Renderer:
         dz = min(float(R_WC[2, 2]), -0.05)
         rng_m = min(h / -dz, opt.max_range_m)
         foot = rng_m * 2.0 * self._pixel_angle / math.sqrt(-dz)
-        lev = self._level(self._glevels, foot)
         tile_m = self._glevels[0].texel_m * (self._glevels[0].image.shape[0] - 7)
         px, py = math.fmod(float(p_WC[0]), tile_m), math.fmod(float(p_WC[1]), tile_m)
         N = np.array([[-h, 0.0, px], [0.0, -h, py], [0.0, 0.0, 1.0]])
-        M = (lev.H @ N @ R_WC).astype(np.float32).ravel()
-        n = lev.image.shape[1] - 1
         b = self._buf
-        _ground_maps(self._hx, self._hy, self._hz, M, np.float32(h / opt.max_range_m), n, b.gmx, b.gmy)
+        min_den = np.float32(h / opt.max_range_m)
+        if self._atlas is None:
+            lev = self._level(self._glevels, foot)
+            image = lev.image
+            M = (lev.H @ N @ R_WC).astype(np.float32).ravel()
+            n = lev.image.shape[1] - 1
+            _ground_maps(self._hx, self._hy, self._hz, M, min_den, n, b.gmx, b.gmy)
+        else:
+            at = self._atlas
+            image = at.image
+            # a half-resolution pixel's footprint on the ground, at cos(angle to the nadir) = a:
+            # 2 pa h / a^2 along the range, 2 pa h / a across, geometric mean K a^-1.5; the level's texel
+            # is reached where a^1.5 <= K / texel. The nadir has the smallest footprint: K.
+            K = 2.0 * self._pixel_angle * h
+            thr = ((K / at.texel_m) ** (2.0 / 3.0)).astype(np.float32)
+            M = (self._glevels[0].H @ N @ R_WC).astype(np.float32).ravel()
+            n0 = self._glevels[0].image.shape[0] - 7
+            _ground_maps_mip(
+                self._hx, self._hy, self._hz, M, min_den, thr, at.inv_f, at.size, at.off, n0, b.gmx, b.gmy
+            )
+            foot = K
         H2, W2 = self._half_shape
         # nearest-texel lookup is 3x cheaper and, with the mip level at one to two texels per pixel (or
         # magnified up to 2x) and pyrUp's Gaussian after it, looks the same; bilinear only below that
         interp = cv2.INTER_NEAREST if foot >= 0.5 * self._glevels[0].texel_m else cv2.INTER_LINEAR
         cv2.remap(
-            lev.image,
+            image,
             b.gmx.reshape(H2, W2),
             b.gmy.reshape(H2, W2),
             interp,
-            dst=b.half,
+            dst=b.half if b.half4 is None else b.half4,
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=0,
         )
+        if b.half4 is not None:
+            cv2.cvtColor(b.half4, cv2.COLOR_BGRA2BGR, dst=b.half)  # pyrUp is faster on 3 channels
         if self._pyrup:
             cv2.pyrUp(b.half, dst=out, dstsize=(self.width, self.height))
         else:
@@ -587,10 +819,11 @@ class Renderer:
         # bounding box of the deck's image from its outline (the whole image if part of it is behind
         # the camera or outside the lens model, where the outline does not bound the image)
         X_C = (self._outline_P - p_PC) @ R_PC
-        if np.all(X_C[:, 2] <= 0):
+        if np.all(X_C[:, 2] <= 0) and not self._wide:
             return None  # the whole deck is behind the camera
         u0, u1, v0, v1 = 0, W, 0, H
-        if np.all(X_C[:, 2] > 1e-6):
+        # a camera that sees past 90 deg projects points behind its image plane (NaN where it cannot)
+        if self._wide or np.all(X_C[:, 2] > 1e-6):
             uv = self.camera.project(X_C)
             if np.isfinite(uv).all():
                 u0 = max(int(math.floor(uv[:, 0].min())) - 2, 0)
@@ -606,7 +839,7 @@ class Renderer:
         lev = self._level(self._dlevels, foot)
         N = np.array([[-h_p, 0.0, p_PC[0]], [0.0, -h_p, p_PC[1]], [0.0, 0.0, 1.0]])
         M = (lev.H @ N @ R_PC).astype(np.float32).ravel()
-        rows, cols = lev.image.shape
+        rows, cols = lev.image.shape[:2]
         nr, nc = v1 - v0, u1 - u0
         b = self._buf
         mask = b.mask[: nr * nc].reshape(nr, nc)
@@ -622,15 +855,17 @@ class Renderer:
         v0, v1, u0, u1 = roi
         nr, nc = v1 - v0, u1 - u0
         b = self._buf
-        tmp = b.tmp[: nr * nc].reshape(nr, nc)
+        tmp = b.tmp[: nr * nc * (3 if self._color else 1)].reshape(nr, nc, *self._chan)
         cv2.remap(
             lev.image,
             b.pmx[: nr * nc].reshape(nr, nc),
             b.pmy[: nr * nc].reshape(nr, nc),
             cv2.INTER_LINEAR,
-            dst=tmp,
+            dst=tmp if b.tmp4 is None else b.tmp4[: nr * nc * 4].reshape(nr, nc, 4),
             borderMode=cv2.BORDER_REPLICATE,
         )
+        if b.tmp4 is not None:
+            cv2.cvtColor(b.tmp4[: nr * nc * 4].reshape(nr, nc, 4), cv2.COLOR_BGRA2BGR, dst=tmp)
         cv2.copyTo(tmp, b.mask[: nr * nc].reshape(nr, nc), out[v0:v1, u0:u1])  # in place into the view
 
     def _effects(self, img: NDArray[np.uint8], w_WB_B: FloatArray | None) -> NDArray[np.uint8]:
@@ -649,6 +884,8 @@ class Renderer:
             oy, ox = (int(a) for a in self._rng.integers(0, (H, W)))
             cv2.add(img, self._noise_pos[oy : oy + H, ox : ox + W], dst=img)
             cv2.subtract(img, self._noise_neg[oy : oy + H, ox : ox + W], dst=img)
+        if self._valid is not None:
+            cv2.bitwise_and(img, self._valid, dst=img)
         return img
 
 

@@ -1,8 +1,15 @@
 """Procedural textures for the camera renderer: tileable ground and the platform deck with its pad.
 
-Everything is uint8 grayscale and built from a seeded ``numpy.random.Generator`` with whole-array
-operations (noise octaves upsampled with ``cv2.resize``, grain with ``cv2.GaussianBlur``), never per-pixel
-Python loops.
+Everything is uint8, grayscale (H, W) or BGR colour (H, W, 3), and built from a seeded
+``numpy.random.Generator`` with whole-array operations (noise octaves upsampled with ``cv2.resize``, grain
+with ``cv2.GaussianBlur``), never per-pixel Python loops.
+
+A colour ground is its grey version tinted: the grey tile is drawn exactly as for ``color=False`` (same
+draws, so the grey tile of a seed never changes), then a low-frequency hue field (drawn after it) mixes
+two tints of unit luma per kind, so the colour tile's luma (``cv2.COLOR_BGR2GRAY``) is the grey tile.
+Distractors (:class:`DistractorSpec`: red discs or rectangles, the false targets of a colour filter) are
+drawn right after the grey tile (so they sit at the same places in a grey and a colour tile of one
+seed), painted last, and listed with their world positions.
 
 Ground textures tile: every octave is periodic on the tile (noise is wrapped before it is upsampled or
 blurred), so the renderer samples them with wrap-around and the seam is invisible.
@@ -25,30 +32,142 @@ from alight.types import FloatArray
 GROUND_KINDS = ("grass", "asphalt", "concrete")
 """Ground textures :func:`make_ground_texture` knows."""
 
+DISTRACTOR_SHAPES = ("disc", "rect", "mixed")
+"""Shapes :class:`DistractorSpec` knows (``mixed``: each one a disc or a rectangle, half and half)."""
+
+
+def _bgr_ok(c: object) -> bool:
+    return (
+        isinstance(c, tuple)
+        and len(c) == 3
+        and all(isinstance(x, (int, np.integer)) and 0 <= int(x) <= 255 for x in c)
+    )
+
+
+@dataclass(frozen=True)
+class DistractorSpec:
+    """Coloured objects to paint on the ground: the false targets of a colour filter (red boxes, cars,
+    tarpaulins). Positions are uniform over the tile, drawn from the texture's generator."""
+
+    count: int = 8
+    """Number of objects per tile."""
+    size_m: float = 0.8
+    """Diameter of a disc, length of a rectangle's long side (m)."""
+    shape: str = "mixed"
+    """``disc``, ``rect`` or ``mixed`` (:data:`DISTRACTOR_SHAPES`)."""
+    aspect: float = 2.0
+    """A rectangle's long side over its short side (>= 1); its orientation is uniform."""
+    color_bgr: tuple[int, int, int] = (40, 40, 200)
+    """Mean colour, BGR, 0-255 (default: the red of :class:`alight.pads.RedTarget`)."""
+    color_jitter_dn: float = 25.0
+    """Each object's colour is the mean plus a uniform offset in +-this per channel (DN), clipped."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "color_bgr", tuple(int(c) for c in self.color_bgr))
+        if not (isinstance(self.count, (int, np.integer)) and int(self.count) >= 0):
+            raise ValueError(f"DistractorSpec.count must be an int >= 0, got {self.count!r}")
+        if not (math.isfinite(self.size_m) and self.size_m > 0):
+            raise ValueError(f"DistractorSpec.size_m must be finite and > 0, got {self.size_m}")
+        if self.shape not in DISTRACTOR_SHAPES:
+            raise ValueError(f"DistractorSpec.shape must be one of {DISTRACTOR_SHAPES}, got {self.shape!r}")
+        if not (math.isfinite(self.aspect) and self.aspect >= 1):
+            raise ValueError(f"DistractorSpec.aspect must be finite and >= 1, got {self.aspect}")
+        if not _bgr_ok(self.color_bgr):
+            raise ValueError(f"DistractorSpec.color_bgr must be 3 ints in [0, 255], got {self.color_bgr}")
+        if not (math.isfinite(self.color_jitter_dn) and 0 <= self.color_jitter_dn <= 255):
+            raise ValueError(
+                f"DistractorSpec.color_jitter_dn must be in [0, 255], got {self.color_jitter_dn}"
+            )
+
+
+@dataclass(frozen=True)
+class Distractor:
+    """One object painted on the ground tile (see :meth:`GroundTexture.distractor_centers_W`)."""
+
+    center_W: tuple[float, float]
+    """Centre ``(x_W, y_W)`` (m) in the tile at the origin; it repeats every ``tile_m``."""
+    shape: str
+    """``disc`` or ``rect``."""
+    length_m: float
+    """Diameter of a disc, long side of a rectangle (m)."""
+    width_m: float
+    """Short side of a rectangle, the diameter again for a disc (m)."""
+    angle_rad: float
+    """Direction of a rectangle's long side from +x_W, counter-clockwise (rad); 0 for a disc."""
+    color_bgr: tuple[int, int, int]
+    """Its colour, BGR (a grey tile holds its luma)."""
+
 
 @dataclass(frozen=True, eq=False)
 class GroundTexture:
     """A square, tileable ground texture for the world plane z = 0 (placement: :meth:`texel_of_W`)."""
 
     image: NDArray[np.uint8]
-    """Grayscale tile, shape (n, n)."""
+    """The tile: grayscale, shape (n, n), or BGR colour, shape (n, n, 3)."""
     m_per_px: float
     """Ground size of one texel (m)."""
     kind: str = "custom"
     """What it shows (``grass``, ``asphalt``, ``concrete`` or ``custom``)."""
+    distractors: tuple[Distractor, ...] = ()
+    """Objects painted on the tile (:class:`Distractor`), their centres in the tile at the world origin;
+    the tile repeats every :attr:`tile_m` in x and y, and so do they (:meth:`distractor_centers_W`)."""
 
     def __post_init__(self) -> None:
         img = np.ascontiguousarray(self.image)
-        if img.dtype != np.uint8 or img.ndim != 2 or img.shape[0] != img.shape[1] or img.shape[0] < 2:
-            raise ValueError(f"ground image must be a square uint8 image, got {img.dtype} {img.shape}")
+        square = img.ndim in (2, 3) and img.shape[0] == img.shape[1] and img.shape[0] >= 2
+        if img.dtype != np.uint8 or not square or (img.ndim == 3 and img.shape[2] != 3):
+            raise ValueError(
+                f"ground image must be a square uint8 (n, n) or (n, n, 3) image, got {img.dtype} {img.shape}"
+            )
         if not (math.isfinite(self.m_per_px) and self.m_per_px > 0):
             raise ValueError(f"m_per_px must be finite and positive, got {self.m_per_px}")
         img.setflags(write=False)
         object.__setattr__(self, "image", img)
+        object.__setattr__(self, "distractors", tuple(self.distractors))
 
     @property
     def size_px(self) -> int:
         return int(self.image.shape[0])
+
+    @property
+    def is_color(self) -> bool:
+        """True for a BGR tile."""
+        return self.image.ndim == 3
+
+    def distractor_centers_W(
+        self, center_W: FloatArray | tuple[float, float] = (0.0, 0.0), radius_m: float | None = None
+    ) -> FloatArray:
+        """Centres ``(x_W, y_W)`` (m) of every painted distractor, shape (K, 2): without ``radius_m``
+        those of the tile at the origin (``0 <= x_W < tile_m``, ``-tile_m < y_W <= 0``); with it every
+        repetition of the tiled ground within ``radius_m`` (m) of ``center_W`` (2,). The order is by
+        distractor, then by tile; :meth:`distractor_index_W` gives each row's distractor."""
+        return self._copies(center_W, radius_m)[0]
+
+    def distractor_index_W(
+        self, center_W: FloatArray | tuple[float, float] = (0.0, 0.0), radius_m: float | None = None
+    ) -> NDArray[np.intp]:
+        """Index into :attr:`distractors` of each row of :meth:`distractor_centers_W` (same arguments)."""
+        return self._copies(center_W, radius_m)[1]
+
+    def _copies(
+        self, center_W: FloatArray | tuple[float, float], radius_m: float | None
+    ) -> tuple[FloatArray, NDArray[np.intp]]:
+        base = np.array([d.center_W for d in self.distractors], dtype=np.float64).reshape(-1, 2)
+        idx = np.arange(len(base))
+        if radius_m is None:
+            return base, idx
+        c = np.asarray(center_W, dtype=np.float64)
+        if c.shape != (2,) or not np.isfinite(c).all() or not (math.isfinite(radius_m) and radius_m >= 0):
+            raise ValueError("distractor_centers_W needs a finite center_W (2,) and a radius_m >= 0")
+        T = self.tile_m
+        i0, i1 = math.floor((c[0] - radius_m) / T) - 1, math.floor((c[0] + radius_m) / T) + 1
+        j0, j1 = math.floor((c[1] - radius_m) / T) - 1, math.floor((c[1] + radius_m) / T) + 2
+        ii, jj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="ij")
+        shifts = T * np.stack([ii.ravel(), jj.ravel()], axis=1).astype(np.float64)
+        pts = (base[:, None, :] + shifts[None, :, :]).reshape(-1, 2)
+        rows = np.repeat(idx, len(shifts))
+        keep = np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) <= radius_m
+        return pts[keep], rows[keep]
 
     @property
     def tile_m(self) -> float:
@@ -67,8 +186,8 @@ class DeckTexture:
     """The platform deck (a dark rectangle) with the pad in its centre, in the pad frame ``P``."""
 
     image: NDArray[np.uint8]
-    """Grayscale image, shape (rows, cols): rows along -x_P, columns along -y_P (the pad texture
-    convention of :mod:`alight.pads`)."""
+    """Grayscale image, shape (rows, cols), or BGR, shape (rows, cols, 3): rows along -x_P, columns along
+    -y_P (the pad texture convention of :mod:`alight.pads`)."""
     H_P_to_px: FloatArray
     """3x3 homography from deck-plane points ``(x, y, 1)`` in P (m) to pixels ``(u, v, 1)``."""
     length_m: float
@@ -134,8 +253,21 @@ def _to_u8(img: NDArray[np.float32]) -> NDArray[np.uint8]:
 _GROUND_CACHE_SIZE = 4
 _GROUND_CACHE: collections.OrderedDict[object, tuple[GroundTexture, dict[str, Any]]]
 _GROUND_CACHE = collections.OrderedDict()
-"""Ground textures by (kind, size, texel, generator state before), with the generator state after;
-least recently used first. One entry is ~1 MB for the default tile."""
+"""Ground textures by (kind, size, texel, colour, distractors, generator state before), with the
+generator state after; least recently used first. One entry is ~1 MB (grey) or ~3 MB (colour) for the
+default tile."""
+
+_LUMA_BGR = np.array([0.114, 0.587, 0.299])
+"""OpenCV's ``COLOR_BGR2GRAY`` weights, in BGR order."""
+
+_TINTS_BGR = {
+    # two tints per kind, each scaled to unit luma, mixed by a low-frequency field: lush green to dry
+    # yellow-green grass, grey-blue to grey asphalt, warm to neutral grey concrete. Every tint keeps
+    # G > 0.6 R, so no ground texel passes paper 003's red test (Alg. 2).
+    "grass": ((0.55, 1.18, 0.80), (0.50, 1.05, 1.15)),
+    "asphalt": ((1.14, 1.00, 0.92), (1.03, 1.00, 0.98)),
+    "concrete": ((0.88, 1.00, 1.08), (0.96, 1.00, 1.02)),
+}
 
 
 def _freeze_state(value: object) -> object:
@@ -149,7 +281,13 @@ def _freeze_state(value: object) -> object:
 
 
 def make_ground_texture(
-    kind: str, rng: np.random.Generator, size_px: int = 1024, m_per_px: float = 0.02
+    kind: str,
+    rng: np.random.Generator,
+    size_px: int = 1024,
+    m_per_px: float = 0.02,
+    *,
+    color: bool = False,
+    distractors: DistractorSpec | None = None,
 ) -> GroundTexture:
     """A tileable ground texture.
 
@@ -157,13 +295,28 @@ def make_ground_texture(
     faint stains), ``concrete`` (light, slabs with dark joints every ``size_px / 8`` texels, stains and
     grain). ``size_px`` (a power of two) texels of ``m_per_px`` metres: the default tile is 20.48 m.
 
+    ``color``: a BGR tile, shape (n, n, 3) (grass greenish, asphalt grey-blue, concrete warm grey) whose
+    luma is the grey tile of the same generator state (see the module docstring); else grayscale (n, n),
+    byte for byte what this function always drew. ``distractors``: objects painted on the tile after
+    that (:class:`DistractorSpec`), listed in ``GroundTexture.distractors``; on a grey tile they hold
+    their colour's luma.
+
     Making a tile costs ~60-100 ms, so the last few are cached by their arguments and the generator's
     state: a generator in a state seen before (a scenario seed flown again, with other settings) gets the
     same (immutable) texture and is left in the state that drawing it would leave, so what it draws
     afterwards is unchanged too.
     """
+    if distractors is not None and not isinstance(distractors, DistractorSpec):
+        raise ValueError(f"distractors must be a DistractorSpec or None, got {type(distractors).__name__}")
     try:
-        key: object = (kind, int(size_px), float(m_per_px), _freeze_state(rng.bit_generator.state))
+        key: object = (
+            kind,
+            int(size_px),
+            float(m_per_px),
+            bool(color),
+            distractors,
+            _freeze_state(rng.bit_generator.state),
+        )
     except (AttributeError, TypeError):
         key = None  # not a numpy Generator with a readable state: no caching
     if key is not None:
@@ -172,7 +325,7 @@ def make_ground_texture(
             _GROUND_CACHE.move_to_end(key)
             rng.bit_generator.state = hit[1]
             return hit[0]
-    tex = _make_ground_texture(kind, rng, size_px, m_per_px)
+    tex = _make_ground_texture(kind, rng, size_px, m_per_px, bool(color), distractors)
     if key is not None:
         _GROUND_CACHE[key] = (tex, rng.bit_generator.state)
         while len(_GROUND_CACHE) > _GROUND_CACHE_SIZE:
@@ -180,7 +333,14 @@ def make_ground_texture(
     return tex
 
 
-def _make_ground_texture(kind: str, rng: np.random.Generator, size_px: int, m_per_px: float) -> GroundTexture:
+def _make_ground_texture(
+    kind: str,
+    rng: np.random.Generator,
+    size_px: int,
+    m_per_px: float,
+    color: bool = False,
+    distractors: DistractorSpec | None = None,
+) -> GroundTexture:
     n = int(size_px)
     if kind == "grass":
         patches = fractal_noise(rng, n, base_cells=8, persistence=0.55)
@@ -206,7 +366,85 @@ def _make_ground_texture(kind: str, rng: np.random.Generator, size_px: int, m_pe
         img -= 55.0 * joints / np.float32(max(float(joints.max()), 1e-6))
     else:
         raise ValueError(f"unknown ground kind {kind!r}; known: {GROUND_KINDS}")
-    return GroundTexture(_to_u8(img.astype(np.float32)), float(m_per_px), kind)
+    img = img.astype(np.float32)
+    # the distractors are drawn before the hue field, so they sit at the same places in grey and colour
+    drawn = None
+    if distractors is not None and distractors.count > 0:
+        drawn = _draw_distractors(distractors, rng, n, float(m_per_px))
+    if color:
+        # hue field: smooth noise on at most 64 cells, stretched periodically over the tile
+        k = min(n, 64)
+        hue = fractal_noise(rng, k, base_cells=4, persistence=0.5)
+        if k < n:
+            hue = _periodic_upsample(hue, n)
+        mix = np.clip(np.float32(0.5) + np.float32(0.3) * hue, 0.0, 1.0)[..., None]
+        t0, t1 = (np.asarray(t) / (np.asarray(t) @ _LUMA_BGR) for t in _TINTS_BGR[kind])
+        img = img[..., None] * (t0.astype(np.float32) + mix * (t1 - t0).astype(np.float32))
+    placed: tuple[Distractor, ...] = ()
+    if drawn is not None and distractors is not None:
+        img, placed = _paint_distractors(img, distractors, drawn, float(m_per_px))
+    return GroundTexture(_to_u8(img), float(m_per_px), kind, placed)
+
+
+def _draw_distractors(
+    spec: DistractorSpec, rng: np.random.Generator, n: int, m_per_px: float
+) -> tuple[NDArray[np.float64], ...]:
+    """Texel positions (k, 2), rectangle flags, angles and colours (k, 3) of ``spec.count`` objects on
+    an ``n``-texel tile. Every draw is made whatever the shape, so the positions do not depend on it."""
+    if 2 * (int(math.ceil(spec.size_m / m_per_px / 2)) + 2) + 1 > n:
+        raise ValueError(f"distractors of {spec.size_m} m do not fit in a {n * m_per_px} m tile")
+    k = int(spec.count)
+    uv = rng.random((k, 2)) * n
+    is_rect = rng.random(k) < 0.5
+    angle = rng.random(k) * math.pi
+    jitter = rng.uniform(-spec.color_jitter_dn, spec.color_jitter_dn, (k, 3))
+    if spec.shape != "mixed":
+        is_rect[:] = spec.shape == "rect"
+    colors = np.clip(np.rint(np.asarray(spec.color_bgr, dtype=np.float64) + jitter), 0, 255)
+    return uv, is_rect.astype(np.float64), angle, colors
+
+
+def _paint_distractors(
+    img: NDArray[np.float32], spec: DistractorSpec, drawn: tuple[NDArray[np.float64], ...], m_per_px: float
+) -> tuple[NDArray[np.float32], tuple[Distractor, ...]]:
+    """Paint the objects of :func:`_draw_distractors` onto the float tile (grey (n, n) or BGR (n, n, 3))
+    with exact area coverage at their edges (a one-texel linear ramp of the signed distance) and
+    wrap-around at the tile's edges. Texel ``(u, v)`` (integer at texel centres) is the ground point
+    ``(u m_per_px, -v m_per_px)`` (``GroundTexture.texel_of_W``)."""
+    n = img.shape[0]
+    uv, is_rect, angle, colors = drawn
+    length_px = spec.size_m / m_per_px
+    reach = int(math.ceil(length_px / 2)) + 2
+    out = img.copy()
+    placed = []
+    offs = np.arange(-reach, reach + 1)
+    for i in range(len(uv)):
+        uc, vc = float(uv[i, 0]), float(uv[i, 1])
+        iu, iv = int(math.floor(uc)), int(math.floor(vc))
+        cols, rows = iu + offs, iv + offs
+        du = (cols - uc)[None, :].astype(np.float64)
+        dv = (rows - vc)[:, None].astype(np.float64)
+        if is_rect[i]:
+            w_px = length_px / spec.aspect
+            a = float(angle[i])
+            # the long side's direction (cos a, sin a) in W is (cos a, -sin a) in (u, v)
+            along = du * math.cos(a) - dv * math.sin(a)
+            across = du * math.sin(a) + dv * math.cos(a)
+            ex = np.abs(along) - length_px / 2
+            ey = np.abs(across) - w_px / 2
+            sd = np.hypot(np.maximum(ex, 0), np.maximum(ey, 0)) + np.minimum(np.maximum(ex, ey), 0)
+            shape, width_m, ang = "rect", spec.size_m / spec.aspect, a
+        else:
+            sd = np.hypot(du, dv) - length_px / 2
+            shape, width_m, ang = "disc", spec.size_m, 0.0
+        cover = np.clip(0.5 - sd, 0.0, 1.0).astype(np.float32)
+        bgr = tuple(int(c) for c in colors[i])
+        value = np.asarray(bgr, np.float32) if out.ndim == 3 else np.float32(float(colors[i] @ _LUMA_BGR))
+        ix = np.ix_(rows % n, cols % n)
+        c = cover[..., None] if out.ndim == 3 else cover
+        out[ix] = out[ix] * (np.float32(1.0) - c) + value * c
+        placed.append(Distractor((uc * m_per_px, -vc * m_per_px), shape, spec.size_m, width_m, ang, bgr))
+    return out, tuple(placed)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -224,6 +462,7 @@ def make_deck_texture(
     rng: np.random.Generator | None = None,
     shadow_polygon_P: FloatArray | None = None,
     shadow_gain: float = 0.45,
+    color: bool = False,
 ) -> DeckTexture:
     """The deck (a ``length_m`` (along x_P) by ``width_m`` (along y_P) rectangle of grey ``deck_gray``,
     with a faint stain texture when ``rng`` is given) with ``pad``'s texture at its centre, pixel-aligned:
@@ -231,11 +470,19 @@ def make_deck_texture(
     deck's extent is rounded to the nearest pixel (returned in the result).
 
     ``shadow_polygon_P`` (K, 2) in P (m): a hard shadow over that polygon, brightness times ``shadow_gain``.
+    ``color``: a BGR image (the deck a neutral grey, a grey pad texture replicated in the three channels);
+    else grayscale (a BGR pad texture converted with ``cv2.COLOR_BGR2GRAY``).
     """
     if length_m < pad.size_m or width_m < pad.size_m:
         raise ValueError(f"the deck ({length_m} x {width_m} m) must be at least the pad ({pad.size_m} m)")
-    tex = pad.texture(px_per_m)
+    tex = np.asarray(pad.texture(px_per_m))
     n = tex.shape[0]
+    if tex.dtype != np.uint8 or tex.shape[:2] != (n, n) or not (tex.ndim == 2 or tex.shape[2:] == (3,)):
+        raise ValueError(f"a pad texture must be uint8 (n, n) or (n, n, 3), got {tex.dtype} {tex.shape}")
+    if color and tex.ndim == 2:
+        tex = cv2.cvtColor(tex, cv2.COLOR_GRAY2BGR)
+    elif not color and tex.ndim == 3:
+        tex = cv2.cvtColor(np.ascontiguousarray(tex), cv2.COLOR_BGR2GRAY)
     s = n / pad.size_m
     mx = int(round((length_m - pad.size_m) / 2 * s))  # margin rows (along x)
     my = int(round((width_m - pad.size_m) / 2 * s))  # margin columns (along y)
@@ -247,6 +494,8 @@ def make_deck_texture(
     else:
         deck = np.full((rows, cols), deck_gray, np.float32)
     img = _to_u8(deck.astype(np.float32))
+    if color:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
     img[mx : mx + n, my : my + n] = tex
     L, W = rows / s, cols / s
     H = np.array([[0.0, -s, s * W / 2 - 0.5], [-s, 0.0, s * L / 2 - 0.5], [0.0, 0.0, 1.0]])
@@ -255,8 +504,10 @@ def make_deck_texture(
         if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not np.isfinite(poly).all():
             raise ValueError(f"shadow_polygon_P must be a finite (K >= 3, 2) array, got {poly.shape}")
         uv = np.c_[poly, np.ones(len(poly))] @ H.T
-        cover = _polygon_coverage(uv[:, :2] / uv[:, 2:], img.shape)
+        cover = _polygon_coverage(uv[:, :2] / uv[:, 2:], (rows, cols))
         gain = 1.0 - (1.0 - shadow_gain) * cover
+        if color:
+            gain = gain[..., None]
         img = _to_u8(img.astype(np.float32) * gain)
     return DeckTexture(img, H, L, W)
 
