@@ -1,0 +1,599 @@
+"""Engines that fly a campaign's missions in parallel: ``local`` (a pool of worker processes) and
+``dask`` (Dask distributed: a scheduler address, or an embedded ``LocalCluster``).
+
+Both run every mission inside a *sandbox*: a child Python process (``subprocess.Popen``, its own
+session, so a Ctrl-C at the terminal reaches only the parent) that receives missions over a socket,
+flies them one after another and sends back a ``MissionOutcome``. The process that owns a sandbox
+(the campaign process for ``local``, a Dask worker for ``dask``) waits for each answer with the
+mission's wall-clock deadline; when the deadline passes it kills the sandbox's whole process group
+and starts a new one. So:
+
+- a mission that raises becomes an outcome with ``error`` and the traceback, and the sandbox goes on;
+- a mission that hangs (even in compiled code that never returns to the interpreter) is killed at its
+  deadline and becomes an ``error`` outcome; the worker slot is replaced by a fresh process;
+- a sandbox that dies (segfault, ``os._exit``, out of memory) closes its socket, which its owner sees
+  at once: an ``error`` outcome, and a fresh process.
+
+With Dask the sandbox lives inside the Dask worker (one per worker thread, kept between tasks, so
+start-up costs are paid once per worker); a Dask task never blocks the worker's event loop on a hung
+mission and the Dask worker itself is never killed. A Dask worker that dies anyway is Dask's business
+(it reschedules the task; past ``distributed.scheduler.allowed-failures`` the task fails, which also
+becomes an ``error`` outcome).
+
+A sandbox polls its parent's pid and exits when the parent is gone (a SIGKILLed campaign leaves no
+worker behind for long). A sandbox writes nothing where the campaign keeps its results: the files a
+mission produces are written into a scratch directory and returned as bytes inside the outcome, and
+the campaign process writes them into ``missions/<id>/``. That keeps a single writer, and works with
+Dask workers on other machines.
+
+Sandboxes need ``fork``/``exec`` with inherited file descriptors (``pass_fds``): Linux and macOS.
+
+A mission function takes ``(scenario: Scenario, out_dir: Path)``, returns the result dict of
+``alight.evaluation.runner.run_mission`` (at least ``outcome``), and may write files into ``out_dir``
+(a scratch directory; its contents end up in the mission's directory). It is named by
+``"module:qualname"`` (or given as a module-level function, which is turned into that name), because
+the sandbox imports it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import traceback
+import uuid
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
+from typing import Any
+
+from alight.errors import AlightError
+
+DEFAULT_MISSION_FN = "alight.campaign.engines:fly_mission"
+ENGINES = ("local", "dask")
+STARTUP_TIMEOUT_S = 300.0
+"""A sandbox that has not imported its mission function after this long is treated as broken (s)."""
+PARENT_POLL_S = 0.5
+
+MissionFn = Callable[[Any, Path], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class MissionTask:
+    mission_id: str
+    scenario: dict[str, Any]
+    """The scenario as JSON-compatible data."""
+    timeout_s: float
+    """Wall-clock limit (s), counted from the moment a ready sandbox receives the mission."""
+
+
+@dataclass
+class MissionOutcome:
+    mission_id: str
+    result: dict[str, Any] | None
+    """The mission function's result; None when ``error`` is set."""
+    error: str | None = None
+    """One line saying what went wrong (exception, timeout, dead worker); None on success."""
+    details: str | None = None
+    """The traceback or the circumstances of the error (for ``error.txt``)."""
+    files: dict[str, bytes] = field(default_factory=dict)
+    """Files the mission wrote (path relative to the mission directory -> contents)."""
+    wall_time_s: float = 0.0
+    """Wall time from the sandbox receiving the mission to its answer (or to the kill)."""
+
+
+def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """The campaign's mission: fly ``scenario`` with the log on (the flight energy and the platform
+    estimate's RMSE come from it). When it did not land, fly it again through ``fly_to_dir`` into
+    ``out_dir``: the same scenario is the same flight (everything is seeded), and ``fly_to_dir`` writes
+    the mission's logs, plots, report.html and its animated replay (replay.gif). The second
+    flight is checked against the first (``reflight`` in the result)."""
+    from alight.evaluation.mission_io import fly_to_dir
+    from alight.evaluation.runner import run_mission
+
+    run = run_mission(scenario, record=True)
+    result = dict(run.result)
+    if result["outcome"] != "landed":
+        again = fly_to_dir(scenario, out_dir, replay=True).result
+        same = all(
+            again.get(k) == result.get(k) for k in ("outcome", "touchdown_error_m", "simulated_time_s")
+        )
+        result["reflight"] = {"outcome": again["outcome"], "same_flight": same}
+        if not same:
+            result["reflight"]["note"] = (
+                f"the recorded re-flight differs from the campaign's flight: {again['outcome']} at "
+                f"{again['simulated_time_s']} s vs {result['outcome']} at {result['simulated_time_s']} s"
+            )
+    return result
+
+
+# -- naming mission functions -----------------------------------------------------------------------------
+
+
+def function_spec(fn: MissionFn | str | None) -> str:
+    """``"module:qualname"`` of a mission function (checked importable here, with one-line errors)."""
+    if fn is None:
+        return DEFAULT_MISSION_FN
+    if isinstance(fn, str):
+        resolve_function(fn)
+        return fn
+    module, qualname = getattr(fn, "__module__", None), getattr(fn, "__qualname__", "")
+    if not module or "<" in qualname or module == "__main__":
+        raise AlightError(f"mission function {fn!r} must be a module-level function of an importable module")
+    spec = f"{module}:{qualname}"
+    resolve_function(spec)
+    return spec
+
+
+def resolve_function(spec: str) -> MissionFn:
+    import importlib
+
+    module_name, _, qualname = spec.partition(":")
+    if not module_name or not qualname:
+        raise AlightError(f"mission function '{spec}' must be written module:function")
+    try:
+        obj: Any = importlib.import_module(module_name)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError) as err:
+        raise AlightError(f"mission function '{spec}' cannot be imported ({err})") from None
+    if not callable(obj):
+        raise AlightError(f"mission function '{spec}' is not callable")
+    return obj  # type: ignore[no-any-return]
+
+
+# -- inside the sandbox -----------------------------------------------------------------------------------
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    name = type(err).__name__
+    return f"{name}: {text}" if text else name
+
+
+def _collect_files(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def execute(task: MissionTask, fn: MissionFn) -> MissionOutcome:
+    """Fly one mission in this process; every exception becomes an error outcome."""
+    from alight.scenario import Scenario
+
+    t0 = time.perf_counter()
+    scratch = Path(tempfile.mkdtemp(prefix=f"alight-{task.mission_id}-"))
+    try:
+        scenario = Scenario.model_validate(task.scenario)
+        result = fn(scenario, scratch)
+        if not isinstance(result, dict) or "outcome" not in result:
+            raise TypeError(f"the mission function returned {type(result).__name__}, not a result dict")
+        return MissionOutcome(
+            task.mission_id, result, files=_collect_files(scratch), wall_time_s=time.perf_counter() - t0
+        )
+    except (Exception, SystemExit) as err:
+        return MissionOutcome(
+            task.mission_id,
+            None,
+            error=_one_line(err),
+            details=traceback.format_exc(),
+            wall_time_s=time.perf_counter() - t0,
+        )
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _watch_parent(ppid: int) -> None:
+    def loop() -> None:
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != ppid:
+                os._exit(0)
+
+    threading.Thread(target=loop, name="alight-parent-watch", daemon=True).start()
+
+
+def worker_main(fd: int) -> None:
+    """Entry point of a sandbox process: serve missions on the socket ``fd`` until it closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the campaign process decides what a Ctrl-C stops
+    conn = Connection(fd)
+    _watch_parent(os.getppid())
+    try:
+        _, sys_path, fn_name = conn.recv()  # plain strings: safe to unpickle before sys.path is set
+    except EOFError:
+        return
+    if sys_path:
+        sys.path[:] = list(sys_path)
+    try:
+        fn = resolve_function(fn_name)
+        # Imports before "ready", so a mission's deadline does not pay for them: validating a scenario
+        # imports the presets (the whole pipeline), and the default mission the simulator.
+        import alight.mission.presets  # noqa: F401
+        import alight.scenario  # noqa: F401
+
+        if fn_name == DEFAULT_MISSION_FN:
+            import alight.evaluation.mission_io  # noqa: F401
+            import alight.evaluation.runner  # noqa: F401
+    except BaseException as err:  # noqa: BLE001  (reported to the owner, which stops the campaign)
+        conn.send(("fatal", _one_line(err)))
+        return
+    conn.send(("ready", os.getpid()))
+    while True:
+        try:
+            message = conn.recv()
+        except (EOFError, OSError):
+            return
+        if message[0] != "run":
+            return
+        try:
+            conn.send(("done", execute(message[1], fn)))
+        except (BrokenPipeError, OSError):
+            return
+
+
+_WORKER_CODE = "import sys; from alight.campaign.engines import worker_main; worker_main(int(sys.argv[1]))"
+
+
+_LIVE_LOCK = threading.Lock()
+_LIVE: set[Sandbox] = set()
+"""Sandboxes of this process that are not reaped yet (their process group ids are still theirs)."""
+
+
+class Sandbox:
+    """A child process that flies missions; owned by one thread of one process."""
+
+    def __init__(self, fn_spec: str, sys_path: list[str] | None) -> None:
+        ours, theirs = socket.socketpair()
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-c", _WORKER_CODE, str(theirs.fileno())],
+                pass_fds=(theirs.fileno(),),
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+            )
+        except BaseException:
+            ours.close()
+            raise
+        finally:
+            theirs.close()
+        with _LIVE_LOCK:
+            _LIVE.add(self)
+        self.conn = Connection(ours.detach())
+        self.conn.send(("init", sys_path, fn_spec))
+        self.ready = False
+        self.started = time.monotonic()
+        self.task: MissionTask | None = None
+        self.deadline = float("inf")
+        self.t_sent = 0.0
+
+    def send(self, task: MissionTask) -> None:
+        self.task = task
+        self.t_sent = time.monotonic()
+        self.deadline = self.t_sent + task.timeout_s
+        self.conn.send(("run", task))
+
+    def _kill_group(self) -> None:
+        # Only while the sandbox is not reaped: until then its pid, and so its process group id, cannot
+        # have been reused by an unrelated process.
+        if self.proc.returncode is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+
+    def kill(self) -> int:
+        """Kill the process group (the mission may have started processes of its own); its exit status."""
+        with _LIVE_LOCK:
+            self._kill_group()
+            code = self.proc.wait()  # prompt after SIGKILL
+            _LIVE.discard(self)
+        self.conn.close()
+        return code
+
+    def close(self) -> None:
+        """Ask an idle sandbox to stop (its socket closes); kill it if it does not within a second."""
+        self.conn.close()
+        try:
+            with _LIVE_LOCK:
+                self.proc.wait(timeout=1.0)
+                _LIVE.discard(self)
+        except subprocess.TimeoutExpired:
+            pass
+        self.kill()
+
+    def died(self) -> int:
+        """The sandbox's socket closed: take down what the mission may have started, reap the sandbox and
+        return its exit status (a process already exiting keeps its own status)."""
+        return self.kill()
+
+    def error_outcome(self, task: MissionTask, what: str, details: str) -> MissionOutcome:
+        return MissionOutcome(
+            task.mission_id, None, error=what, details=details, wall_time_s=time.monotonic() - self.t_sent
+        )
+
+
+def _status_text(code: int) -> str:
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
+def _timeout_outcome(box: Sandbox, task: MissionTask) -> MissionOutcome:
+    timeout = task.timeout_s
+    box.kill()
+    return box.error_outcome(
+        task,
+        f"timeout: no result after {timeout:g} s wall time; the worker process was killed",
+        f"The mission ran longer than the campaign's timeout_s = {timeout:g} s of wall time.\n"
+        f"Its worker process (pid {box.proc.pid}) was killed and replaced by a new one.\n",
+    )
+
+
+def _death_outcome(box: Sandbox, task: MissionTask, code: int) -> MissionOutcome:
+    return box.error_outcome(
+        task,
+        f"the worker process died during the mission ({_status_text(code)})",
+        f"The worker process (pid {box.proc.pid}) flying this mission ended with {_status_text(code)}\n"
+        "without sending a result (a crash in compiled code, os._exit, or the system killing it).\n",
+    )
+
+
+def _handshake(box: Sandbox, message: Any) -> None:
+    if message[0] == "fatal":
+        box.kill()
+        raise AlightError(f"campaign worker could not start: {message[1]}")
+    if message[0] == "ready":
+        box.ready = True
+
+
+# -- the local engine -------------------------------------------------------------------------------------
+
+
+class LocalEngine:
+    """Missions on ``workers`` sandboxes of this machine, managed by the calling process."""
+
+    name = "local"
+
+    def __init__(self, workers: int | None = None, fn_spec: str = DEFAULT_MISSION_FN) -> None:
+        n = (os.cpu_count() or 1) if workers is None else workers
+        if n < 1:
+            raise AlightError(f"--workers must be >= 1, got {n}")
+        self.workers = n
+        self.fn_spec = fn_spec
+
+    def run(self, tasks: Iterable[MissionTask]) -> Iterator[MissionOutcome]:
+        """Yield one outcome per task, in the order they finish. Closing the generator (or an exception
+        such as KeyboardInterrupt inside it) kills every sandbox."""
+        queue = deque(tasks)
+        if not queue:
+            return
+        sys_path = list(sys.path)
+        boxes: list[Sandbox] = [Sandbox(self.fn_spec, sys_path) for _ in range(min(self.workers, len(queue)))]
+        try:
+            while queue or any(b.task is not None for b in boxes):
+                for b in boxes:
+                    if b.ready and b.task is None and queue:
+                        b.send(queue.popleft())
+                now = time.monotonic()
+                deadline = min(
+                    [b.deadline for b in boxes if b.task is not None]
+                    + [b.started + STARTUP_TIMEOUT_S for b in boxes if not b.ready],
+                    default=now + 1.0,
+                )
+                ready = wait([b.conn for b in boxes], timeout=max(0.0, min(deadline - now, 3600.0)))
+                replace: list[Sandbox] = []
+                for b in boxes:
+                    if b.conn not in ready:
+                        continue
+                    try:
+                        message = b.conn.recv()
+                    except (EOFError, OSError):
+                        code = b.died()
+                        if not b.ready:
+                            raise AlightError(
+                                f"campaign worker process ended during start-up ({_status_text(code)})"
+                            ) from None
+                        replace.append(b)
+                        if b.task is not None:
+                            yield _death_outcome(b, b.task, code)
+                        continue
+                    if message[0] == "done":
+                        b.task, b.deadline = None, float("inf")
+                        yield message[1]
+                    else:
+                        _handshake(b, message)
+                now = time.monotonic()
+                for b in boxes:
+                    if b in replace:
+                        continue
+                    if b.task is not None and now >= b.deadline:
+                        replace.append(b)
+                        yield _timeout_outcome(b, b.task)
+                    elif not b.ready and now >= b.started + STARTUP_TIMEOUT_S:
+                        b.kill()
+                        raise AlightError(f"campaign worker did not start within {STARTUP_TIMEOUT_S:g} s")
+                for b in replace:
+                    boxes.remove(b)
+                    if queue:
+                        boxes.append(Sandbox(self.fn_spec, sys_path))
+        finally:
+            for b in boxes:
+                if b.task is None and b.ready:
+                    b.close()
+                else:
+                    b.kill()
+
+
+# -- the dask engine --------------------------------------------------------------------------------------
+
+_local = threading.local()
+
+
+def _dask_task(task: MissionTask, fn_spec: str, sys_path: list[str] | None) -> MissionOutcome:
+    """Runs in a Dask worker thread: fly ``task`` in this thread's sandbox with the task's deadline."""
+    box: Sandbox | None = getattr(_local, "box", None)
+    if box is not None and (
+        getattr(_local, "key", None) != (fn_spec, tuple(sys_path or ())) or box.proc.poll() is not None
+    ):
+        box.close()  # another mission function, or the sandbox died while idle
+        box = None
+    if box is None:
+        box = Sandbox(fn_spec, sys_path)
+        _local.box, _local.key = box, (fn_spec, tuple(sys_path or ()))
+    try:
+        while not box.ready:
+            left = box.started + STARTUP_TIMEOUT_S - time.monotonic()
+            if left <= 0 or not box.conn.poll(left):
+                raise AlightError(f"campaign worker did not start within {STARTUP_TIMEOUT_S:g} s")
+            _handshake(box, box.conn.recv())
+        box.send(task)
+        if box.conn.poll(max(0.0, box.deadline - time.monotonic())):
+            message = box.conn.recv()
+            box.task = None
+            return message[1]  # type: ignore[no-any-return]
+        _local.box = None
+        return _timeout_outcome(box, task)
+    except (EOFError, OSError):
+        _local.box = None
+        code = box.died()
+        if box.task is None:
+            raise AlightError(
+                f"campaign worker process ended during start-up ({_status_text(code)})"
+            ) from None
+        return _death_outcome(box, task, code)
+    except BaseException:
+        _local.box = None
+        box.kill()
+        raise
+
+
+def stop_sandboxes() -> int:
+    """Kill every sandbox of this process (run on each Dask worker when a campaign ends or is stopped):
+    idle ones would hold memory on a shared cluster, busy ones belong to cancelled missions. The thread
+    that owns a busy one sees its socket close; an idle one is replaced at the next mission. Returns
+    how many were signalled."""
+    with _LIVE_LOCK:
+        boxes = list(_LIVE)
+        for box in boxes:
+            box._kill_group()
+            if box.task is None:  # nobody waits on an idle one: reap it here
+                box.proc.wait()
+                _LIVE.discard(box)
+    return len(boxes)
+
+
+def _import_distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise AlightError(
+            "the dask engine needs dask.distributed, which is not installed: pip install 'alight[dask]'"
+        ) from None
+    return distributed
+
+
+class DaskEngine:
+    """Missions as Dask tasks: on the scheduler at ``scheduler``, or on an embedded ``LocalCluster``
+    of ``workers`` processes (one thread each) when no address is given."""
+
+    name = "dask"
+
+    def __init__(
+        self, scheduler: str | None = None, workers: int | None = None, fn_spec: str = DEFAULT_MISSION_FN
+    ) -> None:
+        self.scheduler = scheduler
+        n = (os.cpu_count() or 1) if workers is None else workers
+        if n < 1:
+            raise AlightError(f"--workers must be >= 1, got {n}")
+        self.workers = n
+        self.fn_spec = fn_spec
+        _import_distributed()
+
+    def _connect(self) -> tuple[Any, Any]:
+        import logging
+
+        distributed = _import_distributed()
+        if self.scheduler:
+            try:
+                return distributed.Client(self.scheduler, timeout="20s"), None
+            except (OSError, TimeoutError) as err:
+                raise AlightError(
+                    f"cannot reach the Dask scheduler at {self.scheduler} ({_one_line(err)})"
+                ) from None
+        # The embedded cluster's worker processes inherit an ignored SIGINT: a Ctrl-C is the campaign
+        # process's to handle (it closes the cluster), instead of each worker printing a traceback.
+        main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            cluster = distributed.LocalCluster(
+                n_workers=self.workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, previous)
+        return distributed.Client(cluster), cluster
+
+    def run(self, tasks: Iterable[MissionTask]) -> Iterator[MissionOutcome]:
+        todo = list(tasks)
+        if not todo:
+            return
+        distributed = _import_distributed()
+        client, cluster = self._connect()
+        # An embedded cluster runs on this machine: its sandboxes import from this process's sys.path.
+        sys_path = None if cluster is None else list(sys.path)
+        futures: dict[Any, MissionTask] = {}
+        try:
+            run_id = uuid.uuid4().hex[:8]
+            for t in todo:
+                f = client.submit(
+                    _dask_task, t, self.fn_spec, sys_path, key=f"alight-{t.mission_id}-{run_id}", pure=False
+                )
+                futures[f] = t
+            for f in distributed.as_completed(list(futures)):
+                task = futures[f]
+                try:
+                    outcome = f.result()
+                except Exception as err:  # a Dask-level failure (e.g. KilledWorker) of this mission only
+                    if isinstance(err, AlightError):
+                        raise
+                    outcome = MissionOutcome(
+                        task.mission_id,
+                        None,
+                        error=f"dask task failed: {_one_line(err)}",
+                        details="".join(traceback.format_exception(err)),
+                    )
+                yield outcome
+        finally:
+            try:
+                client.cancel(list(futures), force=True)
+                client.run(stop_sandboxes)
+            except Exception:  # noqa: BLE001  (shutting down; the client may already be gone)
+                pass
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def make_engine(
+    name: str, *, workers: int | None = None, scheduler: str | None = None, fn_spec: str = DEFAULT_MISSION_FN
+) -> LocalEngine | DaskEngine:
+    if name == "local":
+        if scheduler:
+            raise AlightError("--scheduler needs --engine dask")
+        return LocalEngine(workers, fn_spec)
+    if name == "dask":
+        return DaskEngine(scheduler, workers, fn_spec)
+    raise AlightError(f"unknown engine '{name}', expected one of {list(ENGINES)}")

@@ -1,0 +1,382 @@
+"""Run a campaign: expand it, skip what results.csv already holds, fly the rest on an engine, record
+each mission as it finishes, then write summary.json and the campaign report.
+
+Output layout (shared with the report): see docs/campaigns.md. Rerunning the same campaign into the
+same directory resumes it; a campaign whose missions changed since the directory was started is
+refused (use another ``--out``), except that missions may be added (more seeds, more conditions at the
+end of the expansion).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import yaml
+
+import alight
+from alight.campaign.engines import MissionFn, MissionOutcome, MissionTask, function_spec, make_engine
+from alight.campaign.spec import Campaign, PlannedMission, load_campaign
+from alight.campaign.store import (
+    CAMPAIGN_YAML,
+    ResultsStore,
+    columns_for,
+    read_lock,
+    write_lock,
+    write_mission_dir,
+)
+from alight.campaign.summary import write_summary
+from alight.errors import ConfigError, InputError
+
+_RESULT_KEYS = (
+    "touchdown_error_m",
+    "touchdown_rel_speed_mps",
+    "touchdown_rel_vertical_speed_mps",
+    "time_to_land_s",
+    "time_first_detection_s",
+    "energy_flight_J",
+    "energy_compute_J",
+    "detections",
+    "go_arounds",
+    "platform_estimate_rmse_m",
+    "simulated_time_s",
+)
+
+
+@dataclass
+class CampaignRunResult:
+    campaign: str
+    out_dir: Path
+    n_planned: int
+    """Missions of the campaign (after ``limit``)."""
+    n_skipped: int
+    """Of those, already in results.csv before this run."""
+    n_run: int
+    """Flown (and recorded) by this run."""
+    n_errors: int
+    """Error rows recorded by this run."""
+    wall_time_s: float
+    summary_path: Path | None
+    report_path: Path | None = None
+    report_error: str | None = None
+    """One line when the campaign report could not be written (the results are complete regardless)."""
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped the campaign; every mission recorded so far is kept (``result``)."""
+
+    def __init__(self, message: str, result: CampaignRunResult) -> None:
+        super().__init__(message)
+        self.message = message
+        self.result = result
+
+
+def lock_data(campaign: Campaign) -> dict[str, Any]:
+    """campaign.lock.json: the expanded campaign, for resuming and for ``alight report``."""
+    spec = campaign.spec
+    return {
+        "campaign": campaign.name,
+        "alight_version": alight.__version__,
+        "campaign_seed": spec.seed,
+        "seeds_per_condition": spec.seeds_per_condition,
+        "timeout_s": spec.timeout_s,
+        "presets": campaign.presets,
+        "swept_parameters": campaign.swept_parameters,
+        "columns": columns_for(campaign.swept_parameters),
+        "conditions": [
+            {"condition_id": c.condition_id, "index": c.index, "params": c.params}
+            for c in campaign.conditions
+        ],
+        "missions": [
+            {
+                "mission_id": m.mission_id,
+                "condition_id": m.condition_id,
+                "preset": m.preset,
+                "replicate": m.replicate,
+                "seed": m.seed,
+                "params": m.params,
+                "scenario": m.scenario,
+            }
+            for m in campaign.missions
+        ],
+    }
+
+
+def _check_resume(out: Path, campaign: Campaign, done_rows: list[dict[str, str]]) -> None:
+    """Refuse to resume into a directory whose recorded missions are not this campaign's."""
+    if not done_rows:
+        return
+    hint = "the campaign changed since this output directory was started: use another --out"
+    planned = {m.mission_id: m for m in campaign.missions}
+    old = read_lock(out)
+    old_missions = {m["mission_id"]: m for m in old["missions"]} if old else {}
+    for row in done_rows:
+        mid = row["mission_id"]
+        m = planned.get(mid)
+        if m is None:
+            raise ConfigError(
+                f"{out}: results.csv holds mission {mid}, which this campaign does not have; {hint}"
+            )
+        if row["seed"] != str(m.seed):
+            raise ConfigError(f"{out}: mission {mid} was flown with seed {row['seed']}, now {m.seed}; {hint}")
+        before = old_missions.get(mid)
+        if before is not None and before.get("scenario") != m.scenario:
+            raise ConfigError(f"{out}: mission {mid} has a different scenario now; {hint}")
+
+
+def _row(m: PlannedMission, outcome: MissionOutcome, mission_dir: str) -> dict[str, Any]:
+    row: dict[str, Any] = {
+        "mission_id": m.mission_id,
+        "condition_id": m.condition_id,
+        "preset": m.preset,
+        "replicate": m.replicate,
+        "seed": m.seed,
+        **m.params,
+        "mission_dir": mission_dir,
+    }
+    if outcome.error is None and outcome.result is not None:
+        r = outcome.result
+        row.update({k: r.get(k) for k in _RESULT_KEYS})
+        row["outcome"] = r["outcome"]
+        row["success"] = bool(r.get("success", r["outcome"] == "landed"))
+        row["wall_time_s"] = r.get("wall_time_s", outcome.wall_time_s)
+        row["error"] = None
+    else:
+        row.update({"outcome": "error", "success": False, "wall_time_s": outcome.wall_time_s})
+        row["error"] = outcome.error or "unknown error"
+    return row
+
+
+def _record(out: Path, campaign: Campaign, m: PlannedMission, outcome: MissionOutcome) -> dict[str, Any]:
+    """Write the mission's directory; the results.csv row that says it is complete."""
+    context = {
+        "campaign": campaign.name,
+        "mission_id": m.mission_id,
+        "condition_id": m.condition_id,
+        "replicate": m.replicate,
+        "params": m.params,
+    }
+    error_text = None
+    if outcome.error is None and outcome.result is not None:
+        result = {**outcome.result, "campaign": context}
+    else:
+        result = {
+            "scenario": m.scenario,
+            "seed": m.seed,
+            "preset": m.preset,
+            "outcome": "error",
+            "success": False,
+            "error": outcome.error,
+            "wall_time_s": outcome.wall_time_s,
+            "alight_version": alight.__version__,
+            "campaign": context,
+        }
+        error_text = f"{m.mission_id}: {outcome.error}\n\n{outcome.details or ''}"
+    rel = write_mission_dir(out, m.mission_id, result, outcome.files, error_text)
+    return _row(m, outcome, rel)
+
+
+class _Progress:
+    """One carriage-return line on stderr, when it is a terminal."""
+
+    def __init__(self, name: str, total: int, done: int, enabled: bool, stream: TextIO | None = None) -> None:
+        self.stream = stream or sys.stderr
+        self.enabled = enabled and self.stream.isatty()
+        self.name, self.total, self.done, self.errors = name, total, done, 0
+        self.t0 = time.monotonic()
+        self.flown = 0
+        self.width = 0
+
+    def update(self, error: bool) -> None:
+        self.done += 1
+        self.flown += 1
+        self.errors += int(error)
+        self.show()
+
+    def show(self) -> None:
+        if not self.enabled:
+            return
+        elapsed = time.monotonic() - self.t0
+        text = f"{self.name}: {self.done}/{self.total} missions"
+        if self.errors:
+            text += f", {self.errors} errors"
+        if self.flown:
+            eta = elapsed / self.flown * (self.total - self.done)
+            text += f", {60.0 * self.flown / max(elapsed, 1e-9):.1f}/min, ETA {_duration(eta)}"
+        self.width = max(self.width, len(text))
+        self.stream.write("\r" + text.ljust(self.width))
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _duration(seconds: float) -> str:
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s}s"
+    if s < 3600:
+        return f"{s // 60}m{s % 60:02d}s"
+    return f"{s // 3600}h{s % 3600 // 60:02d}m"
+
+
+class _Interrupts:
+    """SIGINT raises KeyboardInterrupt, except inside ``critical()`` (recording one mission), where it is
+    held until the block ends: a Ctrl-C never leaves half a mission directory or half a row."""
+
+    def __init__(self) -> None:
+        self.active = threading.current_thread() is threading.main_thread()
+        self.in_critical = False
+        self.pending = False
+        self.previous: Any = None
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        if self.in_critical:
+            self.pending = True
+            return
+        raise KeyboardInterrupt
+
+    def __enter__(self) -> _Interrupts:
+        if self.active:
+            self.previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def ignore(self) -> None:
+        """From now on (cleaning up) a further Ctrl-C is ignored."""
+        if self.active:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.active:
+            signal.signal(signal.SIGINT, self.previous)
+
+    @contextmanager
+    def critical(self) -> Iterator[None]:
+        self.in_critical = True
+        try:
+            yield
+        finally:
+            self.in_critical = False
+        if self.pending:
+            self.pending = False
+            raise KeyboardInterrupt
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def write_report(out_dir: Path) -> tuple[Path | None, str | None]:
+    """The campaign report: (path, None); (None, reason) when writing it failed; (None, None) when
+    ``alight.campaign.report`` is not installed."""
+    try:
+        from alight.campaign.report import write_campaign_report
+    except ImportError:  # the report is optional: results and summary.json stand on their own
+        return None, None
+    try:
+        return Path(write_campaign_report(out_dir)), None
+    except Exception as err:  # noqa: BLE001  (a report failure must never cost the results)
+        return None, _one_line(err)
+
+
+def run_campaign(
+    campaign: str | Path | Campaign,
+    out_dir: str | Path | None = None,
+    *,
+    engine: str = "local",
+    workers: int | None = None,
+    scheduler: str | None = None,
+    limit: int | None = None,
+    progress: bool = False,
+    mission_fn: MissionFn | str | None = None,
+    report: bool = True,
+) -> CampaignRunResult:
+    """Fly every mission of ``campaign`` not yet in ``out_dir/results.csv`` (default ``runs/<name>``).
+
+    ``engine``: ``local`` (``workers`` processes, default the CPU count) or ``dask`` (``scheduler`` address,
+    or an embedded LocalCluster of ``workers`` processes). ``limit``: only the first ``limit`` missions of
+    the campaign's order. ``mission_fn``: what a mission is (default ``engines.fly_mission``), a
+    module-level function or ``"module:function"``. Raises ``AlightError`` for bad input and
+    ``CampaignInterrupted`` on Ctrl-C (after recording what finished and writing summary.json).
+    """
+    t0 = time.monotonic()
+    if not isinstance(campaign, Campaign):
+        campaign = load_campaign(campaign)
+    if limit is not None and limit < 1:
+        raise ConfigError(f"--limit must be >= 1, got {limit}")
+    fn_spec = function_spec(mission_fn)
+    runner = make_engine(engine, workers=workers, scheduler=scheduler, fn_spec=fn_spec)
+
+    out = Path(out_dir) if out_dir is not None else Path("runs") / campaign.name
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
+    missions = campaign.missions[:limit] if limit is not None else campaign.missions
+    store = ResultsStore.open(out / "results.csv", columns_for(campaign.swept_parameters))
+    try:
+        _check_resume(out, campaign, store.rows)
+        text = campaign.text
+        if text is None:
+            text = yaml.safe_dump(campaign.spec.model_dump(mode="json", exclude_none=True), sort_keys=False)
+        (out / CAMPAIGN_YAML).write_text(text, encoding="utf-8")
+        write_lock(out, lock_data(campaign))
+
+        pending = [m for m in missions if m.mission_id not in store.done]
+        by_id = {m.mission_id: m for m in pending}
+        tasks = [MissionTask(m.mission_id, m.scenario, campaign.timeout_s) for m in pending]
+        bar = _Progress(campaign.name, len(missions), len(missions) - len(pending), progress)
+        n_run = n_errors = 0
+        interrupted = False
+        with _Interrupts() as interrupts:
+            outcomes = runner.run(tasks)
+            try:
+                bar.show()
+                for outcome in outcomes:
+                    with interrupts.critical():
+                        row = _record(out, campaign, by_id[outcome.mission_id], outcome)
+                        store.append(row)
+                    n_run += 1
+                    n_errors += int(row["outcome"] == "error")
+                    bar.update(row["outcome"] == "error")
+            except KeyboardInterrupt:
+                interrupted = True
+            finally:
+                interrupts.ignore()
+                outcomes.close()  # stops the engine: pending work cancelled, worker processes killed
+                bar.close()
+            result = CampaignRunResult(
+                campaign=campaign.name,
+                out_dir=out,
+                n_planned=len(missions),
+                n_skipped=len(missions) - len(pending),
+                n_run=n_run,
+                n_errors=n_errors,
+                wall_time_s=0.0,
+                summary_path=None,
+            )
+            result.summary_path = write_summary(out)
+            if interrupted:
+                result.wall_time_s = time.monotonic() - t0
+                done = result.n_skipped + n_run
+                raise CampaignInterrupted(
+                    f"interrupted: {done} of {len(missions)} missions recorded in {out}; "
+                    "run the same command again to resume",
+                    result,
+                )
+        if report:  # Ctrl-C works again here: the results are complete whatever happens to the report
+            result.report_path, result.report_error = write_report(out)
+    finally:
+        store.close()
+    result.wall_time_s = time.monotonic() - t0
+    return result

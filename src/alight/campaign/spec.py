@@ -1,0 +1,401 @@
+"""Campaign files: many missions over conditions, presets and seeds, validated with pydantic.
+
+A campaign names a base scenario, the presets to compare, how many seeds each condition is flown with,
+and the conditions: a ``grid`` (cartesian product), an explicit list of ``conditions``, and/or
+conditions drawn at random (``sample``). Parameters are named by their dotted scenario path
+(``platform.speed_mps``). ``load_campaign`` expands the file into its missions and validates every
+mission's scenario at once, so a bad value fails before anything flies, with one ``ConfigError`` line
+that names the condition.
+
+Expansion order (it fixes the condition ids ``c000``, ``c001``, ... and through them the seeds):
+
+1. the grid's product, the last key varying fastest (``itertools.product``);
+2. then the explicit ``conditions`` in file order;
+3. if ``sample`` is given, each of those conditions (or the base alone, when there are none) is
+   repeated ``sample.n`` times with freshly drawn sampled parameters.
+
+Missions are ordered condition by condition, replicate by replicate, preset by preset, so a campaign
+stopped early holds paired results of every preset.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+
+from alight.campaign.seeds import mission_seed, sample_rng
+from alight.errors import ConfigError
+from alight.scenario import Scenario, load_scenario, scenario_from_dict
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+_RESERVED = {
+    "preset": "choose presets with the campaign's 'presets' list",
+    "seed": "scenario seeds come from the campaign's 'seed' and 'seeds_per_condition'",
+}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Uniform(_Strict):
+    """Uniform on [low, high)."""
+
+    dist: Literal["uniform"]
+    low: FiniteFloat
+    high: FiniteFloat
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Uniform:
+        if not self.high > self.low:
+            raise ValueError("needs high > low")
+        return self
+
+
+class LogUniform(_Strict):
+    """Log-uniform on [low, high): uniform in log(value); for scales such as noise levels."""
+
+    dist: Literal["loguniform"]
+    low: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    high: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+    @model_validator(mode="after")
+    def _ordered(self) -> LogUniform:
+        if not self.high > self.low:
+            raise ValueError("needs high > low")
+        return self
+
+
+class Normal(_Strict):
+    """Normal with mean and standard deviation (unbounded: a draw outside the scenario's range fails
+    validation at load time, naming the condition)."""
+
+    dist: Literal["normal"]
+    mean: FiniteFloat
+    std: PositiveFloat
+
+
+class Choice(_Strict):
+    """One of ``values``, with probabilities ``p`` (uniform when absent)."""
+
+    dist: Literal["choice"]
+    values: Annotated[list[Any], Field(min_length=1)]
+    p: list[Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]] | None = None
+
+    @model_validator(mode="after")
+    def _weights(self) -> Choice:
+        if self.p is not None:
+            if len(self.p) != len(self.values):
+                raise ValueError("p needs one probability per value")
+            if not math.isclose(sum(self.p), 1.0, abs_tol=1e-9):
+                raise ValueError(f"p must sum to 1, sums to {sum(self.p)}")
+        return self
+
+
+Distribution = Annotated[Uniform | LogUniform | Normal | Choice, Field(discriminator="dist")]
+_DISTRIBUTION = TypeAdapter(Distribution)
+
+
+def _draw(dist: Uniform | LogUniform | Normal | Choice, rng: Any) -> Any:
+    if isinstance(dist, Uniform):
+        return float(rng.uniform(dist.low, dist.high))
+    if isinstance(dist, LogUniform):
+        return float(math.exp(rng.uniform(math.log(dist.low), math.log(dist.high))))
+    if isinstance(dist, Normal):
+        return float(rng.normal(dist.mean, dist.std))
+    index = int(rng.choice(len(dist.values), p=dist.p))
+    return copy.deepcopy(dist.values[index])
+
+
+class CampaignSpec(_Strict):
+    """The campaign file as written."""
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]*$", max_length=100)]
+    """Names the campaign and its default output directory ``runs/<name>``."""
+    description: str | None = None
+    base: dict[str, Any] | str = Field(default_factory=dict)
+    """The base scenario: a mapping of scenario keys, or a scenario file relative to the campaign file."""
+    presets: Annotated[list[str], Field(min_length=1)] | None = None
+    """Presets to compare; default: the base scenario's preset."""
+    seeds_per_condition: Annotated[int, Field(ge=1)] = 1
+    seed: Annotated[int, Field(ge=0)] = 0
+    """Root of the SeedSequence tree every scenario seed and every sampled value comes from."""
+    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] = Field(default_factory=dict)
+    """Dotted scenario path -> values; the conditions are the cartesian product."""
+    conditions: list[dict[str, Any]] = Field(default_factory=list)
+    """Explicit conditions (dotted path -> value), appended after the grid's."""
+    sample: dict[str, Any] | None = None
+    """``n`` (draws per condition) and dotted path -> distribution."""
+    duration_s: PositiveFloat | None = None
+    """Overrides the base scenario's simulated duration (s)."""
+    timeout_s: PositiveFloat = 600.0
+    """Wall-clock limit of one mission (s); a mission still running then is killed, recorded as an error."""
+
+
+@dataclass(frozen=True)
+class Condition:
+    index: int
+    condition_id: str
+    params: dict[str, Any]
+    """Every swept or sampled parameter (dotted path -> value), the base's value where not set."""
+
+
+@dataclass(frozen=True)
+class PlannedMission:
+    mission_id: str
+    condition_id: str
+    condition_index: int
+    preset: str
+    replicate: int
+    seed: int
+    params: dict[str, Any]
+    scenario: dict[str, Any]
+    """The mission's whole scenario as JSON-compatible data (``Scenario.model_validate`` takes it)."""
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A campaign file expanded into its missions."""
+
+    spec: CampaignSpec
+    conditions: list[Condition]
+    missions: list[PlannedMission]
+    swept_parameters: list[str]
+    presets: list[str]
+    source: Path | None = None
+    text: str | None = field(default=None, repr=False)
+    """The campaign file's text as read (copied into the output directory)."""
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def timeout_s(self) -> float:
+        return self.spec.timeout_s
+
+
+def mission_id(condition_id: str, preset: str, replicate: int) -> str:
+    return f"{condition_id}-{preset}-r{replicate:03d}"
+
+
+def _format_validation(prefix: str, err: ValidationError) -> str:
+    first = err.errors()[0]
+    where = ".".join(str(p) for p in first["loc"])
+    msg = first["msg"]
+    extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    got = first.get("input")
+    shown = "" if isinstance(got, dict | list) or got is None else f", got {got!r}"
+    where = f"{where}: " if where else ""
+    return f"{prefix}: {where}{msg}{shown}{extra}"
+
+
+def _get(tree: Mapping[str, Any], path: str) -> Any:
+    node: Any = tree
+    for part in path.split("."):
+        node = node[part]
+    return node
+
+
+def _check_path(tree: Mapping[str, Any], path: str, where: str) -> None:
+    if not isinstance(path, str) or not path:
+        raise ConfigError(f"{where}: a parameter must be a dotted scenario path, got {path!r}")
+    parts = path.split(".")
+    if parts[0] in _RESERVED:
+        raise ConfigError(f"{where}: '{path}' cannot be swept ({_RESERVED[parts[0]]})")
+    node: Any = tree
+    for i, part in enumerate(parts):
+        if not isinstance(node, dict) or part not in node:
+            parent = ".".join(parts[:i]) or "the scenario"
+            known = ", ".join(sorted(node)) if isinstance(node, dict) else "no keys"
+            raise ConfigError(f"{where}: '{path}' is not a scenario key ('{part}' not in {parent}: {known})")
+        node = node[part]
+
+
+def _set(tree: dict[str, Any], path: str, value: Any) -> None:
+    parts = path.split(".")
+    node = tree
+    for part in parts[:-1]:
+        node = node[part]
+    node[parts[-1]] = copy.deepcopy(value)
+
+
+def _short(params: Mapping[str, Any], limit: int = 120) -> str:
+    text = ", ".join(f"{k}={json.dumps(v)}" for k, v in params.items())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _base_scenario(spec: CampaignSpec, source: str, base_dir: Path) -> Scenario:
+    if isinstance(spec.base, str):
+        path = Path(spec.base)
+        if not path.is_absolute():
+            path = base_dir / path
+        return load_scenario(path)
+    return scenario_from_dict(spec.base, f"{source}: base")
+
+
+def expand_campaign(
+    spec: CampaignSpec, *, source: str = "campaign", base_dir: Path | None = None
+) -> tuple[list[Condition], list[PlannedMission], list[str], list[str]]:
+    """Conditions, missions, swept parameter paths and presets of ``spec``; raises ``ConfigError``."""
+    from alight.mission.presets import PRESETS  # late import: presets import the blocks
+
+    base = _base_scenario(spec, source, base_dir or Path.cwd())
+    if spec.duration_s is not None:
+        base = base.model_copy(update={"duration_s": spec.duration_s})
+    base_tree = base.model_dump(mode="json")
+
+    presets = list(spec.presets) if spec.presets is not None else [base.preset]
+    for p in presets:
+        if p not in PRESETS:
+            raise ConfigError(f"{source}: presets: unknown preset '{p}', expected one of {sorted(PRESETS)}")
+    if len(set(presets)) != len(presets):
+        raise ConfigError(f"{source}: presets: a preset is listed twice ({presets})")
+
+    # -- the parameters and their check against the scenario's keys ---------------------------------------
+    paths: list[str] = []
+    for key in spec.grid:
+        _check_path(base_tree, key, f"{source}: grid")
+        paths.append(key)
+    for i, cond in enumerate(spec.conditions):
+        if not cond:
+            raise ConfigError(f"{source}: conditions[{i}]: an empty condition (set at least one parameter)")
+        for key in cond:
+            _check_path(base_tree, key, f"{source}: conditions[{i}]")
+            if key not in paths:
+                paths.append(key)
+    dists: dict[str, Uniform | LogUniform | Normal | Choice] = {}
+    n_draws = 0
+    if spec.sample is not None:
+        sample = dict(spec.sample)
+        n = sample.pop("n", None)
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ConfigError(f"{source}: sample.n: the number of draws must be an integer >= 1, got {n!r}")
+        if not sample:
+            raise ConfigError(f"{source}: sample: no parameter to sample")
+        n_draws = n
+        for key, raw in sample.items():
+            _check_path(base_tree, key, f"{source}: sample")
+            if key in paths:
+                raise ConfigError(f"{source}: sample: '{key}' is also set by the grid or the conditions")
+            try:
+                dists[key] = _DISTRIBUTION.validate_python(raw)
+            except ValidationError as err:
+                raise ConfigError(_format_validation(f"{source}: sample.{key}", err)) from None
+            paths.append(key)
+    for a in paths:
+        for b in paths:
+            if a != b and b.startswith(a + "."):
+                raise ConfigError(f"{source}: '{a}' and '{b}' overlap: sweep one or the other")
+
+    # -- the conditions -------------------------------------------------------------------------------------
+    raw_conditions: list[dict[str, Any]] = []
+    if spec.grid:
+        keys = list(spec.grid)
+        raw_conditions += [
+            dict(zip(keys, combo, strict=True)) for combo in itertools.product(*spec.grid.values())
+        ]
+    raw_conditions += [dict(c) for c in spec.conditions]
+    seen: dict[str, int] = {}
+    for i, cond in enumerate(raw_conditions):
+        key = json.dumps(cond, sort_keys=True)
+        if key in seen:
+            raise ConfigError(
+                f"{source}: condition c{i:03d} ({_short(cond)}) repeats c{seen[key]:03d}; "
+                "more replicates come from seeds_per_condition"
+            )
+        seen[key] = i
+    if not raw_conditions:
+        raw_conditions = [{}]
+    if dists:
+        rng = sample_rng(spec.seed)
+        raw_conditions = [
+            {**cond, **{key: _draw(d, rng) for key, d in dists.items()}}
+            for cond in raw_conditions
+            for _ in range(n_draws)
+        ]
+
+    conditions: list[Condition] = []
+    trees: list[dict[str, Any]] = []
+    for index, cond in enumerate(raw_conditions):
+        cid = f"c{index:03d}"
+        tree = copy.deepcopy(base_tree)
+        for key, value in cond.items():
+            _set(tree, key, value)
+        for preset in presets:
+            tree["preset"] = preset
+            try:
+                checked = Scenario.model_validate(tree)
+            except ValidationError as err:
+                what = f"condition {cid} ({_short(cond)})" if cond else f"condition {cid}"
+                raise ConfigError(_format_validation(f"{source}: {what}, preset {preset}", err)) from None
+        # Values as the scenario holds them (e.g. an int given for a float), so results.csv shows them
+        # in the same form as result.json.
+        tree = checked.model_dump(mode="json")
+        params = {p: _get(tree, p) for p in paths}
+        conditions.append(Condition(index, cid, params))
+        trees.append(tree)
+
+    missions: list[PlannedMission] = []
+    for cond, tree in zip(conditions, trees, strict=True):
+        for r in range(spec.seeds_per_condition):
+            seed = mission_seed(spec.seed, cond.index, r)
+            for preset in presets:
+                mid = mission_id(cond.condition_id, preset, r)
+                scenario = copy.deepcopy(tree)
+                scenario["preset"] = preset
+                scenario["seed"] = seed
+                if "name" not in paths:
+                    scenario["name"] = f"{spec.name} {mid}"
+                missions.append(
+                    PlannedMission(mid, cond.condition_id, cond.index, preset, r, seed, cond.params, scenario)
+                )
+    return conditions, missions, paths, presets
+
+
+def campaign_from_dict(
+    data: Any,
+    source: str = "campaign",
+    *,
+    base_dir: Path | None = None,
+    text: str | None = None,
+    path: Path | None = None,
+) -> Campaign:
+    """Validate and expand a campaign mapping; any problem becomes one ``ConfigError`` line.
+
+    ``base_dir`` resolves a ``base`` given as a file name (default: the working directory).
+    """
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: expected a mapping of campaign keys, got {type(data).__name__}")
+    try:
+        spec = CampaignSpec.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(_format_validation(source, err)) from None
+    conditions, missions, paths, presets = expand_campaign(spec, source=source, base_dir=base_dir)
+    return Campaign(spec, conditions, missions, paths, presets, source=path, text=text)
+
+
+def load_campaign(path: str | Path) -> Campaign:
+    """Read, validate and expand a campaign YAML file; any problem becomes one ``ConfigError`` line."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{p}: no such campaign file")
+    try:
+        text = p.read_text(encoding="utf-8")
+        data = yaml.safe_load(text)
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        line = getattr(getattr(err, "problem_mark", None), "line", None)
+        where = f" (line {line + 1})" if line is not None else ""
+        raise ConfigError(f"{p}: not valid YAML{where}: {str(err).splitlines()[0]}") from None
+    return campaign_from_dict(data, str(p), base_dir=p.resolve().parent, text=text, path=p)

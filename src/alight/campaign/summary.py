@@ -1,0 +1,125 @@
+"""summary.json: per preset and condition, the success rate with its Wilson 95 % interval and the
+distribution of the touchdown error, from results.csv and the campaign's lock file.
+
+``n`` counts every finished mission of a group, ``errors`` those that did not fly to an outcome (an
+exception, a timeout, a dead worker). An error says nothing about landing, so the success rate and its
+interval are over the ``n_flown = n - errors`` missions that flew: ``success_rate = successes /
+n_flown`` (null when nothing flew).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import alight
+from alight.campaign.store import RESULTS_CSV, SUMMARY_JSON, parse_float, read_lock, read_rows, write_json
+from alight.errors import InputError
+
+
+def wilson95(successes: int, n: int) -> tuple[float, float] | None:
+    """The Wilson score 95 % interval of a binomial proportion (no continuity correction); None for n = 0.
+
+    Wilson (1927): p = (p_hat + z^2/2n +- z sqrt(p_hat (1 - p_hat)/n + z^2/4n^2)) / (1 + z^2/n), computed
+    by SciPy's ``BinomTestResult.proportion_ci(method="wilson")``.
+    """
+    if n < 0 or not 0 <= successes <= n:
+        raise ValueError(f"need 0 <= successes <= n, got {successes} of {n}")
+    if n == 0:
+        return None
+    from scipy.stats import binomtest
+
+    ci = binomtest(successes, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def _values(rows: Sequence[Mapping[str, str]], column: str) -> list[float]:
+    out = []
+    for r in rows:
+        v = parse_float(r.get(column, ""))
+        if v is not None:
+            out.append(v)
+    return out
+
+
+def _stats(values: list[float], which: Sequence[str]) -> dict[str, float | None]:
+    if not values:
+        return dict.fromkeys(which)
+    a = np.asarray(values, dtype=float)
+    known = {
+        "p50": lambda: np.percentile(a, 50),
+        "p90": lambda: np.percentile(a, 90),
+        "p95": lambda: np.percentile(a, 95),
+        "max": lambda: np.max(a),
+        "mean": lambda: np.mean(a),
+    }
+    return {k: float(known[k]()) for k in which}
+
+
+def group_summary(rows: Sequence[Mapping[str, str]]) -> dict[str, Any]:
+    """Counts, success rate, Wilson interval and statistics of one group's rows."""
+    n = len(rows)
+    errors = sum(1 for r in rows if r["outcome"] == "error")
+    successes = sum(1 for r in rows if r["success"] == "1")
+    flown = n - errors
+    ci = wilson95(successes, flown)
+    flew = [r for r in rows if r["outcome"] != "error"]
+    landed = [r for r in rows if r["outcome"] == "landed"]
+    return {
+        "n": n,
+        "n_flown": flown,
+        "successes": successes,
+        "errors": errors,
+        "success_rate": successes / flown if flown else None,
+        "wilson95": list(ci) if ci is not None else None,
+        "touchdown_error_m": _stats(_values(landed, "touchdown_error_m"), ("p50", "p90", "p95", "max")),
+        "time_to_land_s": _stats(_values(landed, "time_to_land_s"), ("p50", "mean")),
+        "energy_flight_J": _stats(_values(flew, "energy_flight_J"), ("mean",)),
+        "energy_compute_J": _stats(_values(flew, "energy_compute_J"), ("mean",)),
+    }
+
+
+def summarize(rows: Sequence[Mapping[str, str]], lock: Mapping[str, Any]) -> dict[str, Any]:
+    """summary.json's content for results.csv ``rows`` of the campaign described by ``lock``."""
+    presets = list(lock["presets"])
+    by_group: dict[tuple[str, str], list[Mapping[str, str]]] = {}
+    for r in rows:
+        by_group.setdefault((r["preset"], r["condition_id"]), []).append(r)
+    groups = []
+    for cond in lock["conditions"]:
+        for preset in presets:
+            members = by_group.get((preset, cond["condition_id"]))
+            if not members:
+                continue
+            groups.append(
+                {"preset": preset, "condition_id": cond["condition_id"], "params": cond["params"]}
+                | group_summary(members)
+            )
+    return {
+        "campaign": lock["campaign"],
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "alight_version": alight.__version__,
+        "n_missions": len(rows),
+        "n_planned": len(lock["missions"]),
+        "n_errors": sum(1 for r in rows if r["outcome"] == "error"),
+        "presets": presets,
+        "swept_parameters": list(lock["swept_parameters"]),
+        "groups": groups,
+    }
+
+
+def write_summary(out_dir: str | Path) -> Path:
+    """Write ``out_dir/summary.json`` from its results.csv and campaign.lock.json."""
+    out = Path(out_dir)
+    lock = read_lock(out)
+    if lock is None:
+        raise InputError(f"{out}: no campaign.lock.json (not a campaign output directory)")
+    results = out / RESULTS_CSV
+    rows = read_rows(results) if results.is_file() else []
+    path = out / SUMMARY_JSON
+    write_json(path, summarize(rows, lock))
+    return path
