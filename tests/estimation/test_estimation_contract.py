@@ -17,6 +17,7 @@ from alight.estimation import (
     PlatformEkfConfig,
     PlatformEstimator,
 )
+from alight.estimation.kim_ukf import KimUkfConfig
 from alight.estimation.platform_velocity import PlatformVelocityConfig
 from alight.estimation.sdu_kf import SduKfConfig
 from alight.types import GRAVITY_MPS2, PlatformEstimate, PlatformMeasurement
@@ -83,7 +84,9 @@ def test_ego_factories_refuse_unknown_parameters(name: str) -> None:
         EGO_REGISTRY[name](no_such_parameter=1.0)
 
 
-@pytest.mark.parametrize("cls", [EgoEkfConfig, PlatformEkfConfig, SduKfConfig, PlatformVelocityConfig])
+@pytest.mark.parametrize(
+    "cls", [EgoEkfConfig, PlatformEkfConfig, SduKfConfig, PlatformVelocityConfig, KimUkfConfig]
+)
 def test_every_config_field_is_documented(cls: type) -> None:
     """Each field is followed by its docstring (unit and meaning), as the style asks."""
     tree = ast.parse(inspect.getsource(cls))

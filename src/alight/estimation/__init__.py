@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
+from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
 from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
 from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
@@ -102,6 +103,10 @@ def _sdu_kf(**params: Any) -> SduKalmanFilter:
     return SduKalmanFilter(SduKfConfig(**params))
 
 
+def _ukf_kim(camera: Any = None, mount: Any = None, **params: Any) -> KimUkf:
+    return KimUkf(KimUkfConfig(**params), camera=camera, mount=mount)
+
+
 def _ego_ekf(**params: Any) -> EgoEkf:
     return EgoEkf(EgoEkfConfig(**params))
 
@@ -110,6 +115,7 @@ REGISTRY: dict[str, Callable[..., PlatformEstimator]] = {
     "ekf_unicycle": _platform_ekf,
     "ekf_unicycle_turn": _platform_ekf_ctrv,
     "sdu_kf": _sdu_kf,
+    "ukf_kim": _ukf_kim,
 }
 """Platform estimators by name; each factory takes the estimator's config fields as keywords."""
 
@@ -124,6 +130,8 @@ __all__ = [
     "EgoEkf",
     "EgoEkfConfig",
     "EgoEstimator",
+    "KimUkf",
+    "KimUkfConfig",
     "PlatformEkf",
     "PlatformEkfConfig",
     "PlatformEstimator",

@@ -19,7 +19,9 @@ from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from alight.perception.aruco import ArucoPadDetector, merge_observations
+from alight.perception.color_filter import RedTargetDetector, RedTargetDetectorConfig
 from alight.perception.falanga_tag import FalangaDetectorConfig, FalangaTagDetector
+from alight.perception.flat_earth import FlatEarthGeolocator
 from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
 from alight.perception.homography_geolocation import HomographyGeolocator
 from alight.perception.nfold import NFoldConfig, NFoldDetector
@@ -86,23 +88,30 @@ def _sdu(**kw: Any) -> Detector:
     return SduMarkerDetector(pad, **kw)
 
 
+def _red(**kw: Any) -> Detector:
+    return RedTargetDetector(kw.pop("config", None) or RedTargetDetectorConfig(**kw))
+
+
 REGISTRY: dict[str, Callable[..., Detector]] = {
     "falanga": _falanga,
     "aruco": _aruco,
     "apriltag": _apriltag,
     "nfold": _nfold,
     "sdu": _sdu,
+    "red": _red,
 }
 """Detectors by name. Factories take keyword overrides: ``falanga`` (``size_m``, ``tag``, ``config`` or
 any :class:`FalangaDetectorConfig` field), ``aruco`` (``size_m``, ``pad``, ``dictionary``, ``parameters``,
 ``subpixel_corners``, default True), ``apriltag`` (``dictionary``, ``parameters``), ``nfold`` (paper 004's
 n-fold marker alone: ``size_m``, ``pad``, ``config`` or any :class:`NFoldConfig` field) and ``sdu`` (the
-n-fold marker plus its three ArUco landmarks: ``size_m``, ``pad``, ``camera``, ``nfold`` ...)."""
+n-fold marker plus its three ArUco landmarks: ``size_m``, ``pad``, ``camera``, ``nfold`` ...) and ``red``
+(paper 003's colour filter and biggest red contour: any :class:`RedTargetDetectorConfig` field)."""
 
 GEOLOCATORS: dict[str, Callable[..., Geolocator]] = {
     "pnp": PnpGeolocator,
     "direct": DirectGeolocator,
     "homography": HomographyGeolocator,
+    "flat_earth": FlatEarthGeolocator,
 }
 """Geolocators by name: ``pnp`` (``camera, mount, sigma_px, sigma_ego_pos_m, sigma_ego_att_rad,
 yaw_fold, max_reprojection_px``) and ``direct`` (``mount, sigma_ego_pos_m, sigma_ego_att_rad,
@@ -115,6 +124,7 @@ __all__ = [
     "Detector",
     "DirectGeolocator",
     "FalangaDetectorConfig",
+    "FlatEarthGeolocator",
     "FalangaTagDetector",
     "Geolocator",
     "HomographyGeolocator",
@@ -122,6 +132,8 @@ __all__ = [
     "NFoldDetector",
     "PnpGeolocator",
     "PnpResult",
+    "RedTargetDetector",
+    "RedTargetDetectorConfig",
     "SduMarkerDetector",
     "merge_observations",
     "solve_pnp",

@@ -1,0 +1,429 @@
+"""Red-target detector of paper 003 (Kim et al., Sec. II): a colour filter (Alg. 1 and 2), the biggest
+contour as the target and its centroid as the measurement.
+
+**Alg. 1** (``getBinaryImageofColor(I1, I2, I3)``): a pixel is set where one channel dominates the other
+two,
+
+    I1_ij >= K_I (I2_ij + I3_ij) + C_I.                                                  (Alg. 1)
+
+**Alg. 2** (``colorFilter(I_R, I_G, I_B)``): Alg. 1 once per colour, ``I_RR = Alg1(R, G, B)``,
+``I_GG = Alg1(G, B, R)``, ``I_BB = Alg1(B, R, G)``, a test ``I_Temp = [0.6 I_R < I_G]`` and
+
+    I_CF = I_RR - I_GG - I_BB - I_Temp,                                                  (Alg. 2)
+
+on binary images. We read the subtraction as the paper's OpenCV code would do it on 8-bit masks:
+saturating at 0, so ``I_CF = I_RR and not I_GG and not I_BB and not I_Temp``. The paper gives no values
+for ``K_I`` and ``C_I``; the defaults ``K_I = 0.8``, ``C_I = 20`` accept a saturated red down to a
+quarter of full exposure (``(B, G, R) = (10, 10, 64)``) and reject neutral, skin, brown, pink, green,
+blue and orange (``G > 0.6 R``) tones; a red-orange with ``G < 0.6 R`` passes (a test checks this
+list). The 0.6 of Alg. 2 is ``green_ratio``.
+
+Exactness: the comparisons are evaluated in exact arithmetic on the integer pixel values and the
+decimal values of the parameters (a tie ``I1 = K_I (I2 + I3) + C_I`` counts as set, as written; 0.8 is
+4/5, not the binary float next to it). For ``K_I > 0``, Alg. 1 is equivalent to
+``I2 + I3 <= floor((I1 - C_I) / K_I)``, so a 256-entry look-up table on ``I1`` (built once with exact
+rational arithmetic) and one 16-bit comparison replace the floating-point product; ``0.6 I_R < I_G`` is
+``I_G > floor(0.6 I_R)`` likewise. Whole-image OpenCV operations only (``cv2.split``, ``cv2.add``,
+``cv2.LUT``, ``cv2.compare``, ``cv2.subtract``), no per-pixel Python.
+
+**Target.** Contours of ``I_CF`` (``cv2.findContours``, Suzuki-Abe, the paper's ref. [9]; outer contours
+only); the biggest (``cv2.contourArea``) is the target and its centroid is the measurement: one
+:class:`BlobObservation` (kind ``blob``) with that single pixel, the target's area, shape measures and a
+quality score (the solidity, area / convex hull area). Candidates are measured on their contour polygon;
+the chosen one's centroid and area come from its pixels (:func:`region_moments`: within 0.1 px of the
+true centre for a disc of radius >= 20 px, where the polygon through the boundary pixels' centres is
+biased by half a pixel all round). ``min_area_px`` drops
+specks below a noise floor in every mode (the paper keeps even a one-pixel "biggest contour"; set it to 0
+for that).
+
+**Mitigation of false locks** (``mitigation``, not in the paper; ``none`` is the paper):
+
+- ``shape``: a candidate must pass area bounds (``min_area_px`` .. ``max_area_frac`` of the image),
+  circularity ``4 pi A / P^2 >= min_circularity``, solidity ``>= min_solidity``, aspect ratio of the
+  minimum-area rectangle ``<= max_aspect`` and fill ratio ``A / (rectangle area)`` in
+  ``[min_fill, max_fill]``; the biggest that passes is the target. A disc seen through a fisheye 70 deg
+  off axis has an aspect ratio near 3.8 (``theta / (sin theta cos theta)`` for an equidistant lens), hence
+  the default 4.5. A disc's fill ratio is ``pi / 4``, a rectangle's 1: ``max_fill = 0.9`` tells a disc
+  target from rectangular red objects.
+- ``gate``: with a prediction set by :meth:`RedTargetDetector.set_prediction` (the estimator's predicted
+  pixel and a gate radius), the candidate whose centroid is nearest the prediction, within the radius, is
+  the target; none within the radius gives ``[]`` (a lost target is better than a false one). Without a
+  prediction, the biggest.
+- ``gate+shape``: both; the gate picks among the candidates that pass the shape checks.
+
+With ``gate``, :meth:`detect` depends on the last prediction set, so it is no longer a pure function of
+the image; the pipeline sets the prediction before each frame (or clears it with ``None``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from alight.types import FloatArray, Observation
+
+MITIGATIONS = ("none", "gate", "shape", "gate+shape")
+"""Values of :attr:`RedTargetDetectorConfig.mitigation`."""
+
+
+# --------------------------------------------------------------------------------------------------
+# Alg. 1 and 2
+# --------------------------------------------------------------------------------------------------
+
+
+def _decimal(v: float) -> Fraction:
+    """The number as written: 0.8 is 4/5, not the binary float just above it (shortest repr)."""
+    return Fraction(repr(float(v)))
+
+
+def alg1_table(K_I: float, C_I: float) -> NDArray[np.uint16]:
+    """Look-up table ``T`` (256,) uint16 such that Alg. 1 holds iff ``I2 + I3 < T[I1]``: ``T[i]`` is one
+    more than the largest sum ``s`` in [0, 510] with ``i >= K_I s + C_I`` (exact rational arithmetic on
+    the decimal values of ``K_I``, ``C_I``), 0 when no sum qualifies."""
+    if not (math.isfinite(K_I) and math.isfinite(C_I) and K_I >= 0.0):
+        raise ValueError(f"K_I must be finite and >= 0 and C_I finite, got {K_I}, {C_I}")
+    K = _decimal(K_I)
+    C = _decimal(C_I)
+    T = np.zeros(256, dtype=np.uint16)
+    for i in range(256):
+        if i < C:
+            continue  # i >= K s + C fails for every s >= 0
+        if K == 0:
+            T[i] = 511
+        else:
+            s_max = math.floor((i - C) / K)  # exact: Fraction floor
+            T[i] = min(s_max, 510) + 1
+    return T
+
+
+def temp_table(green_ratio: float) -> NDArray[np.uint8]:
+    """Look-up table ``G_max`` (256,) uint8 such that ``green_ratio * R < G`` iff ``G > G_max[R]`` for
+    integer ``G`` in [0, 255] (exact: ``G_max = floor(green_ratio R)``, clipped to 255)."""
+    if not (math.isfinite(green_ratio) and green_ratio >= 0.0):
+        raise ValueError(f"green_ratio must be finite and >= 0, got {green_ratio}")
+    q = _decimal(green_ratio)
+    return np.array([min(math.floor(q * r), 255) for r in range(256)], dtype=np.uint8)
+
+
+def binary_image_of_color(
+    I1: NDArray[np.uint8], I2: NDArray[np.uint8], I3: NDArray[np.uint8], table: NDArray[np.uint16]
+) -> NDArray[np.uint8]:
+    """Alg. 1 (``getBinaryImageofColor``): 255 where ``I1 >= K_I (I2 + I3) + C_I``, else 0. ``I1..I3``
+    are single-channel uint8 images of one shape; ``table`` is :func:`alg1_table` ``(K_I, C_I)``."""
+    s = cv2.add(I2, I3, dtype=cv2.CV_16U)
+    return cv2.compare(s, cv2.LUT(I1, table), cv2.CMP_LT)
+
+
+def color_filter(
+    image_bgr: NDArray[np.uint8],
+    K_I: float = 0.8,
+    C_I: float = 20.0,
+    green_ratio: float = 0.6,
+    *,
+    tables: tuple[NDArray[np.uint16], NDArray[np.uint8]] | None = None,
+) -> NDArray[np.uint8]:
+    """Alg. 2 (``colorFilter``) on a BGR uint8 image (H, W, 3): the binary image ``I_CF`` (H, W) uint8,
+    255 on the "most reddish" pixels. ``tables`` = ``(alg1_table(K_I, C_I), temp_table(green_ratio))``
+    precomputed (then ``K_I``, ``C_I``, ``green_ratio`` are ignored)."""
+    T1, T2 = tables if tables is not None else (alg1_table(K_I, C_I), temp_table(green_ratio))
+    B, G, R = cv2.split(image_bgr)
+    I_RR = binary_image_of_color(R, G, B, T1)
+    I_GG = binary_image_of_color(G, B, R, T1)
+    I_BB = binary_image_of_color(B, R, G, T1)
+    I_Temp = cv2.compare(G, cv2.LUT(R, T2), cv2.CMP_GT)  # 0.6 I_R < I_G
+    # saturating 8-bit subtraction: I_RR - I_GG - I_BB - I_Temp
+    out = cv2.subtract(I_RR, I_GG)
+    cv2.subtract(out, I_BB, dst=out)
+    cv2.subtract(out, I_Temp, dst=out)
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Detector
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class RedTargetDetectorConfig:
+    """Parameters of :class:`RedTargetDetector` (see the module docstring)."""
+
+    K_I: float = 0.8
+    """Dominance factor of Alg. 1 (>= 0): the channel must exceed ``K_I`` times the sum of the others."""
+    C_I: float = 20.0
+    """Offset of Alg. 1 (digital numbers, 0-255 scale)."""
+    green_ratio: float = 0.6
+    """The constant of Alg. 2's test ``green_ratio * I_R < I_G`` that removes orange and yellow (0.6)."""
+    mitigation: str = "none"
+    """``none`` (the paper: biggest contour), ``gate``, ``shape`` or ``gate+shape``."""
+    open_px: int = 0
+    """Side (px) of a square morphological opening of ``I_CF`` before the contours (0: none, the paper)."""
+    min_area_px: float = 16.0
+    """Smallest contour area (px^2) that can be the target, in every mode (noise floor)."""
+    max_area_frac: float = 0.6
+    """With ``shape``: largest contour area as a fraction of the image."""
+    min_circularity: float = 0.45
+    """With ``shape``: smallest ``4 pi area / perimeter^2`` (1 for a disc, 0.785 a square)."""
+    min_solidity: float = 0.85
+    """With ``shape``: smallest area / convex hull area (the target is convex)."""
+    max_aspect: float = 4.5
+    """With ``shape``: largest long / short side of the minimum-area rectangle."""
+    min_fill: float = 0.6
+    """With ``shape``: smallest area / minimum-area rectangle area (a disc: pi/4, a rectangle: 1)."""
+    max_fill: float = 1.0
+    """With ``shape``: largest area / minimum-area rectangle area (0.9 rejects rectangles, keeps discs)."""
+    gate_radius_px: float = 60.0
+    """With ``gate``: radius (px) used when :meth:`RedTargetDetector.set_prediction` gives none."""
+
+    def __post_init__(self) -> None:
+        if self.mitigation not in MITIGATIONS:
+            raise ValueError(f"mitigation must be one of {MITIGATIONS}, got {self.mitigation!r}")
+        if not (math.isfinite(self.K_I) and self.K_I >= 0):
+            raise ValueError(f"K_I must be finite and >= 0, got {self.K_I}")
+        if not math.isfinite(self.C_I):
+            raise ValueError(f"C_I must be finite, got {self.C_I}")
+        if not (math.isfinite(self.green_ratio) and self.green_ratio >= 0):
+            raise ValueError(f"green_ratio must be finite and >= 0, got {self.green_ratio}")
+        if int(self.open_px) != self.open_px or self.open_px < 0:
+            raise ValueError(f"open_px must be an integer >= 0, got {self.open_px}")
+        for name in ("min_area_px", "min_circularity", "min_solidity", "min_fill"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+        if not (0 < self.max_area_frac <= 1):
+            raise ValueError(f"max_area_frac must be in (0, 1], got {self.max_area_frac}")
+        if not (math.isfinite(self.max_aspect) and self.max_aspect >= 1):
+            raise ValueError(f"max_aspect must be >= 1, got {self.max_aspect}")
+        if not (self.min_fill <= self.max_fill):
+            raise ValueError("min_fill must be <= max_fill")
+        if not (math.isfinite(self.gate_radius_px) and self.gate_radius_px > 0):
+            raise ValueError(f"gate_radius_px must be finite and > 0, got {self.gate_radius_px}")
+
+
+@dataclass(frozen=True, slots=True)
+class BlobObservation(Observation):
+    """An :class:`~alight.types.Observation` of a colour blob: ``pixels`` is its centroid (1, 2), plus the
+    contour's measures."""
+
+    area_px: float = 0.0
+    """Number of target pixels (px^2): the region the contour encloses, holes excluded."""
+    circularity: float = 0.0
+    """``4 pi area / perimeter^2``."""
+    solidity: float = 0.0
+    """Area / convex hull area."""
+    aspect: float = 1.0
+    """Long / short side of the minimum-area rectangle."""
+    fill: float = 0.0
+    """Area / minimum-area rectangle area."""
+
+
+@dataclass(frozen=True, slots=True)
+class Blob:
+    """One contour of ``I_CF`` with its measures."""
+
+    centroid: FloatArray
+    """Polygon centroid (u, v) (px), shape (2,)."""
+    area_px: float
+    circularity: float
+    solidity: float
+    aspect: float
+    fill: float
+    contour: NDArray[np.int32]
+    """The contour as ``cv2.findContours`` gives it, (N, 1, 2)."""
+
+
+def blob_measures(contour: NDArray[np.int32]) -> Blob | None:
+    """Centroid and shape measures of one contour; None for a degenerate one (zero area)."""
+    m = cv2.moments(contour)
+    area = m["m00"]
+    if not area > 0:
+        return None
+    per = cv2.arcLength(contour, True)
+    hull = cv2.contourArea(cv2.convexHull(contour))
+    (_, _), (w, h), _ = cv2.minAreaRect(contour)
+    long_, short = max(w, h), min(w, h)
+    return Blob(
+        centroid=np.array([m["m10"] / area, m["m01"] / area]),
+        area_px=float(area),
+        circularity=float(min(1.0, 4.0 * math.pi * area / (per * per))) if per > 0 else 0.0,
+        solidity=float(min(1.0, area / hull)) if hull > 0 else 0.0,
+        aspect=float(long_ / short) if short > 0 else math.inf,
+        fill=float(area / (w * h)) if w * h > 0 else 0.0,
+        contour=contour,
+    )
+
+
+def region_moments(mask: NDArray[np.uint8], contour: NDArray[np.int32]) -> tuple[FloatArray, float]:
+    """Centroid (u, v) (px) and pixel count of the set pixels of ``mask`` inside ``contour`` (its holes
+    excluded): the mean of the pixel centres. Unbiased where the contour polygon, which runs through the
+    boundary pixels' centres, loses half a pixel all round (2 % of the area of a 50 px disc)."""
+    x, y, w, h = cv2.boundingRect(contour)
+    roi = np.zeros((h, w), np.uint8)
+    cv2.drawContours(roi, [contour - np.array([x, y], dtype=contour.dtype)], -1, 255, -1)
+    cv2.bitwise_and(roi, mask[y : y + h, x : x + w], dst=roi)
+    mo = cv2.moments(roi, binaryImage=True)
+    if not mo["m00"] > 0:
+        return np.full(2, np.nan), 0.0
+    return np.array([mo["m10"] / mo["m00"] + x, mo["m01"] / mo["m00"] + y]), float(mo["m00"])
+
+
+class RedTargetDetector:
+    """Paper 003's colour-filter detector (Alg. 1, 2, biggest contour), with optional false-lock mitigation.
+
+    ``detect(image, t)`` takes a BGR uint8 image (H, W, 3) (a 4th alpha channel is ignored) and returns
+    ``[]`` or one :class:`BlobObservation`; grey, empty, tiny or malformed images give ``[]``, never an
+    exception.
+    """
+
+    def __init__(self, config: RedTargetDetectorConfig | None = None) -> None:
+        self.config = config if config is not None else RedTargetDetectorConfig()
+        c = self.config
+        self._tables = (alg1_table(c.K_I, c.C_I), temp_table(c.green_ratio))
+        self._kernel = (
+            cv2.getStructuringElement(cv2.MORPH_RECT, (int(c.open_px), int(c.open_px)))
+            if c.open_px > 1
+            else None
+        )
+        self._expected_px: FloatArray | None = None
+        self._gate_radius_px = c.gate_radius_px
+
+    # ---- gating input ----------------------------------------------------------------------------
+
+    def set_prediction(self, px: FloatArray | None, radius_px: float | None = None) -> None:
+        """The estimator's predicted pixel ``(u, v)`` of the target in the next image and the gate radius
+        (px; the config's ``gate_radius_px`` when None). ``px=None`` clears the prediction. Used by the
+        ``gate`` mitigations only."""
+        if px is None:
+            self._expected_px = None
+            return
+        p = np.asarray(px, dtype=np.float64).ravel()
+        if p.shape != (2,) or not np.isfinite(p).all():
+            raise ValueError(f"px must be a finite (u, v), got {px!r}")
+        r = self.config.gate_radius_px if radius_px is None else float(radius_px)
+        if not (math.isfinite(r) and r > 0):
+            raise ValueError(f"radius_px must be finite and > 0, got {radius_px}")
+        self._expected_px = p
+        self._gate_radius_px = r
+
+    @property
+    def prediction(self) -> tuple[FloatArray, float] | None:
+        """The prediction in use, ``(px, radius_px)``, or None."""
+        if self._expected_px is None:
+            return None
+        return self._expected_px.copy(), self._gate_radius_px
+
+    # ---- detection -------------------------------------------------------------------------------
+
+    @staticmethod
+    def _as_bgr(image: Any) -> NDArray[np.uint8] | None:
+        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3:
+            return None
+        if image.shape[2] not in (3, 4) or image.shape[0] < 2 or image.shape[1] < 2:
+            return None
+        img = image[:, :, :3] if image.shape[2] == 4 else image
+        return np.ascontiguousarray(img)
+
+    def mask(self, image: Any) -> NDArray[np.uint8] | None:
+        """``I_CF`` of Alg. 2 (after the optional opening), or None for an image it cannot read."""
+        img = self._as_bgr(image)
+        if img is None:
+            return None
+        m = color_filter(img, tables=self._tables)
+        if self._kernel is not None:
+            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, self._kernel)
+        return m
+
+    def candidates(self, image: Any) -> list[Blob]:
+        """Every contour of ``I_CF`` with area >= ``min_area_px``, biggest first."""
+        m = self.mask(image)
+        return [] if m is None else self._blobs(m)
+
+    def _blobs(self, m: NDArray[np.uint8]) -> list[Blob]:
+        if cv2.countNonZero(m) == 0:
+            return []
+        contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        out = []
+        min_area = self.config.min_area_px
+        for cnt in contours:
+            if cv2.contourArea(cnt) < max(min_area, 1e-9):
+                continue
+            b = blob_measures(cnt)
+            if b is not None:
+                out.append(b)
+        out.sort(key=lambda b: -b.area_px)
+        return out
+
+    def passes_shape(self, blob: Blob, image_area_px: float) -> bool:
+        """The ``shape`` checks of the module docstring."""
+        c = self.config
+        return (
+            c.min_area_px <= blob.area_px <= c.max_area_frac * image_area_px
+            and blob.circularity >= c.min_circularity
+            and blob.solidity >= c.min_solidity
+            and blob.aspect <= c.max_aspect
+            and c.min_fill <= blob.fill <= c.max_fill
+        )
+
+    def select(self, blobs: list[Blob], image_area_px: float) -> Blob | None:
+        """The target among ``blobs`` (biggest first) under the configured mitigation."""
+        mode = self.config.mitigation
+        if "shape" in mode:
+            blobs = [b for b in blobs if self.passes_shape(b, image_area_px)]
+        if not blobs:
+            return None
+        if "gate" in mode and self._expected_px is not None:
+            d = np.array([np.hypot(*(b.centroid - self._expected_px)) for b in blobs])
+            k = int(np.argmin(d))
+            return blobs[k] if d[k] <= self._gate_radius_px else None
+        return blobs[0]
+
+    def detect(self, image: Any, t: float) -> list[Observation]:
+        """The target in ``image`` captured at ``t`` (s): ``[]`` or one :class:`BlobObservation`."""
+        try:
+            m = self.mask(image)
+            if m is None:
+                return []
+            blobs = self._blobs(m)
+            if not blobs:
+                return []
+            b = self.select(blobs, float(m.shape[0] * m.shape[1]))
+            if b is None:
+                return []
+            centroid, area = region_moments(m, b.contour)
+        except cv2.error:
+            return []
+        if not area > 0:
+            return []
+        return [
+            BlobObservation(
+                t=t,
+                kind="blob",
+                quality=b.solidity,
+                pixels=centroid.reshape(1, 2),
+                area_px=area,
+                circularity=b.circularity,
+                solidity=b.solidity,
+                aspect=b.aspect,
+                fill=b.fill,
+            )
+        ]
+
+
+__all__ = [
+    "MITIGATIONS",
+    "Blob",
+    "BlobObservation",
+    "RedTargetDetector",
+    "RedTargetDetectorConfig",
+    "alg1_table",
+    "binary_image_of_color",
+    "blob_measures",
+    "region_moments",
+    "color_filter",
+    "temp_table",
+]

@@ -1,0 +1,288 @@
+"""Paper 003's colour filter (Alg. 1 and 2) and red-target detector: the vectorised filter against the
+pseudo-code pixel by pixel, the centroid of a disc, lighting tolerances from the thresholds' closed form,
+bad images, the false-lock mitigations, and real photos."""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from alight.perception import Detector
+from alight.perception.color_filter import (
+    BlobObservation,
+    RedTargetDetector,
+    RedTargetDetectorConfig,
+    alg1_table,
+    color_filter,
+    temp_table,
+)
+
+TARGET_BGR = (40, 40, 200)  # the red of alight.pads.RedTarget
+GREY_BGR = (150, 150, 150)
+
+
+def reference_filter(img: np.ndarray, K: float, C: float, ratio: float) -> np.ndarray:
+    """Alg. 1 and 2 literally, pixel by pixel, in exact arithmetic on the parameters as written
+    (saturating subtraction of 0/1 images)."""
+    Kf, Cf, q = Fraction(repr(K)), Fraction(repr(C)), Fraction(repr(ratio))
+
+    def alg1(i1: int, i2: int, i3: int) -> int:
+        return 1 if i1 >= Kf * (i2 + i3) + Cf else 0
+
+    out = np.zeros(img.shape[:2], np.uint8)
+    for i in range(img.shape[0]):
+        for j in range(img.shape[1]):
+            b, g, r = (int(v) for v in img[i, j])
+            rr, gg, bb = alg1(r, g, b), alg1(g, b, r), alg1(b, r, g)
+            temp = 1 if q * r < g else 0
+            out[i, j] = 255 * max(0, max(0, max(0, rr - gg) - bb) - temp)
+    return out
+
+
+@pytest.mark.parametrize(
+    ("K", "C", "ratio"),
+    [(0.8, 20.0, 0.6), (1.0, 0.0, 0.6), (0.5, 10.5, 0.75), (0.0, 100.0, 0.6), (1.3, -5.0, 0.2)],
+)
+def test_vectorised_filter_is_the_pseudo_code(K: float, C: float, ratio: float) -> None:
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)
+    # plus pixels on the boundaries of Alg. 1 (I1 = K (I2 + I3) + C when that is an integer) and of the
+    # 0.6 test (G = 0.6 R), where a floating-point product could tip either way
+    for k in range(200):
+        g, b = int(rng.integers(0, 128)), int(rng.integers(0, 128))
+        r = Fraction(repr(K)) * (g + b) + Fraction(repr(C))
+        if r.denominator == 1 and 0 <= r <= 255:
+            img[k % 48, k // 48] = (b, g, int(r))
+        rr = int(rng.integers(0, 256))
+        gg = Fraction(repr(ratio)) * rr
+        if gg.denominator == 1 and gg <= 255:
+            img[47 - k % 48, 63 - k // 48] = (int(rng.integers(0, 50)), int(gg), rr)
+    ours = color_filter(img, K, C, ratio)
+    assert ours.dtype == np.uint8 and ours.shape == img.shape[:2]
+    assert np.array_equal(ours, reference_filter(img, K, C, ratio))
+    assert 0 < np.count_nonzero(ours) < ours.size or K == 0.0
+
+
+def test_tables_encode_the_inequalities() -> None:
+    T = alg1_table(0.8, 20.0)
+    assert T[19] == 0  # 19 >= 0.8 s + 20 for no s
+    assert T[20] == 1  # only s = 0
+    assert T[60] == 51  # 60 >= 0.8 s + 20 <=> s <= 50 (a tie at s = 50 counts)
+    assert T[255] == 294  # s <= 293.75
+    G = temp_table(0.6)
+    assert G[200] == 120 and G[201] == 120 and G[255] == 153
+
+
+def test_default_thresholds_sort_colours_as_documented() -> None:
+    """K_I = 0.8, C_I = 20: saturated reds down to a quarter exposure pass, and a red-orange with
+    G < 0.6 R; neutral, skin, brown, orange, pink, green and blue do not (the module docstring's claims).
+    Colours are (B, G, R)."""
+    reds = [(10, 10, 64), (40, 40, 200), (0, 0, 255), (60, 50, 150), (30, 60, 170), (30, 140, 240)]
+    others = [
+        (128, 128, 128), (255, 255, 255), (0, 0, 0), (120, 150, 200), (50, 80, 120), (0, 165, 255),
+        (180, 130, 230), (50, 200, 50), (200, 60, 40), (20, 20, 45),
+    ]  # fmt: skip
+    img = np.array([reds + others], dtype=np.uint8)
+    m = color_filter(img)[0] > 0
+    assert m[: len(reds)].all() and not m[len(reds) :].any()
+
+
+def disc_image(cx: float, cy: float, r: float, size: tuple[int, int] = (480, 640)) -> np.ndarray:
+    """A red disc on grey with the edge anti-aliased as alight.pads.RedTarget draws it."""
+    y, x = np.mgrid[0 : size[0], 0 : size[1]].astype(float)
+    w = np.clip(0.5 - (np.hypot(x - cx, y - cy) - r), 0.0, 1.0)[..., None]
+    fg, bg = np.array(TARGET_BGR, float), np.array(GREY_BGR, float)
+    return np.rint(bg + w * (fg - bg)).astype(np.uint8)
+
+
+@pytest.mark.parametrize(("r_lo", "r_hi", "tol"), [(20.0, 60.0, 0.1), (5.0, 20.0, 0.25)])
+def test_disc_centroid_is_sub_pixel(r_lo: float, r_hi: float, tol: float) -> None:
+    det = RedTargetDetector()
+    rng = np.random.default_rng(1)
+    for _ in range(25):
+        cx, cy, r = rng.uniform(80, 560), rng.uniform(80, 400), rng.uniform(r_lo, r_hi)
+        obs = det.detect(disc_image(cx, cy, r), 2.5)
+        assert len(obs) == 1
+        o = obs[0]
+        assert isinstance(o, BlobObservation) and o.kind == "blob" and o.t == 2.5
+        assert o.pixels.shape == (1, 2)
+        assert np.hypot(*(o.pixels[0] - (cx, cy))) < tol
+        assert o.area_px == pytest.approx(math.pi * r * r, rel=0.07)
+        assert 0.9 < o.quality <= 1.0 and o.aspect < 1.15
+
+
+def scaled(img: np.ndarray, gains_bgr: tuple[float, float, float]) -> np.ndarray:
+    return np.clip(np.rint(img * np.array(gains_bgr)), 0, 255).astype(np.uint8)
+
+
+def test_lighting_tolerance_follows_the_thresholds() -> None:
+    """The target (B, G, R) = (40, 40, 200) under an exposure gain g passes Alg. 1 while
+    200 g >= 0.8 (80 g) + 20, i.e. g >= 20 / 136, and while the saturated red still dominates,
+    255 >= 0.8 (80 g) + 20, i.e. g <= 235 / 64. A red channel gain w (white balance) needs
+    200 w >= 84; a green gain turns it off once 40 g > 0.6 * 200 (Alg. 2's test); a blue gain once
+    200 < 0.8 (40 + 40 b) + 20."""
+    det = RedTargetDetector()
+    base = disc_image(320, 240, 40)
+    found = lambda g: bool(det.detect(scaled(base, g), 0.0))  # noqa: E731
+    g_lo, g_hi = 20 / 136, 235 / 64
+    assert found((1.1 * g_lo,) * 3) and not found((0.9 * g_lo,) * 3)
+    assert found((0.95 * g_hi,) * 3) and not found((1.05 * g_hi,) * 3)
+    w = 84 / 200
+    assert found((1, 1, 1.05 * w)) and not found((1, 1, 0.95 * w))
+    assert found((1, 119 / 40, 1)) and not found((1, 121 / 40, 1))  # G = 119 passes, 121 does not
+    b = 4.625
+    assert found((0.97 * b, 1, 1)) and not found((1.03 * b, 1, 1))
+
+
+@pytest.mark.parametrize(
+    "image",
+    [
+        np.full((480, 640), 128, np.uint8),
+        np.full((480, 640, 3), 128, np.uint8),
+        np.zeros((0, 0, 3), np.uint8),
+        np.zeros((1, 1, 3), np.uint8),
+        np.zeros((480, 640, 3), np.float32),
+        np.zeros((480, 640, 2), np.uint8),
+        None,
+        [[1, 2, 3]],
+        "image.png",
+    ],
+    ids=["grey", "grey_bgr", "empty", "tiny", "float", "two_channels", "none", "list", "str"],
+)
+def test_bad_or_empty_images_give_nothing(image: object) -> None:
+    for mitigation in ("none", "gate+shape"):
+        assert RedTargetDetector(RedTargetDetectorConfig(mitigation=mitigation)).detect(image, 0.0) == []
+
+
+def test_alpha_channel_and_non_contiguous_views_are_read() -> None:
+    det = RedTargetDetector()
+    img = disc_image(300, 200, 30)
+    bgra = np.dstack([img, np.full(img.shape[:2], 255, np.uint8)])
+    big = np.zeros((960, 1280, 3), np.uint8)
+    big[::2, ::2] = img
+    for im in (bgra, big[::2, ::2]):
+        o = det.detect(im, 0.0)
+        assert len(o) == 1 and np.hypot(*(o[0].pixels[0] - (300, 200))) < 0.1
+
+
+def cluttered_scene() -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
+    """The target disc (r = 25 px), a bigger red rectangle (80 x 26), a red ring (non-convex), a speck."""
+    img = disc_image(150, 300, 25)
+    cv2.rectangle(img, (380, 60), (460, 86), TARGET_BGR, -1)
+    cv2.ellipse(img, (500, 350), (45, 45), 0, 30, 330, TARGET_BGR, 9)
+    cv2.circle(img, (600, 30), 1, TARGET_BGR, -1)
+    return img, {"disc": (150, 300), "rect": (420, 73), "ring": (500, 350)}
+
+
+def nearest(obs: list, where: dict[str, tuple[float, float]]) -> str:
+    assert len(obs) == 1
+    p = obs[0].pixels[0]
+    return min(where, key=lambda k: np.hypot(p[0] - where[k][0], p[1] - where[k][1]))
+
+
+def test_paper_mode_takes_the_biggest_red_contour() -> None:
+    img, where = cluttered_scene()
+    det = RedTargetDetector()
+    blobs = det.candidates(img)
+    assert len(blobs) == 3  # the speck is below min_area_px
+    assert nearest(det.detect(img, 0.0), where) == "ring"  # the biggest: a false lock
+
+
+def test_shape_mitigation_keeps_the_disc() -> None:
+    img, where = cluttered_scene()
+    det = RedTargetDetector(RedTargetDetectorConfig(mitigation="shape", max_fill=0.9))
+    assert nearest(det.detect(img, 0.0), where) == "disc"
+    # with rectangles allowed (max_fill 1), the rectangle is the biggest convex candidate
+    det = RedTargetDetector(RedTargetDetectorConfig(mitigation="shape"))
+    assert nearest(det.detect(img, 0.0), where) == "rect"
+
+
+def test_gate_mitigation_follows_the_prediction() -> None:
+    img, where = cluttered_scene()
+    det = RedTargetDetector(RedTargetDetectorConfig(mitigation="gate"))
+    assert nearest(det.detect(img, 0.0), where) == "ring"  # no prediction: the biggest
+    det.set_prediction(np.array([160.0, 290.0]), 40.0)
+    assert nearest(det.detect(img, 0.0), where) == "disc"
+    det.set_prediction(np.array([300.0, 200.0]), 40.0)
+    assert det.detect(img, 0.0) == []  # nothing within the gate: no false lock
+    det.set_prediction(np.array([300.0, 200.0]), 200.0)
+    assert nearest(det.detect(img, 0.0), where) == "rect"
+    det.set_prediction(None)
+    assert det.prediction is None
+    with pytest.raises(ValueError):
+        det.set_prediction(np.array([math.nan, 1.0]), 10.0)
+    with pytest.raises(ValueError):
+        det.set_prediction(np.array([1.0, 1.0]), -1.0)
+
+
+def test_gate_plus_shape_skips_a_nearer_false_target() -> None:
+    img, where = cluttered_scene()
+    det = RedTargetDetector(RedTargetDetectorConfig(mitigation="gate+shape", max_fill=0.9))
+    det.set_prediction(np.array([420.0, 200.0]), 400.0)  # nearer the rectangle and the ring
+    assert nearest(det.detect(img, 0.0), where) == "disc"
+
+
+def test_satisfies_the_detector_protocol_and_validates_its_config() -> None:
+    assert isinstance(RedTargetDetector(), Detector)
+    for bad in (
+        {"mitigation": "both"}, {"K_I": -1.0}, {"C_I": math.nan}, {"green_ratio": -0.1},
+        {"open_px": 1.5}, {"max_area_frac": 0.0}, {"max_aspect": 0.5}, {"min_fill": 0.9, "max_fill": 0.8},
+        {"gate_radius_px": 0.0},
+    ):  # fmt: skip
+        with pytest.raises(ValueError):
+            RedTargetDetectorConfig(**bad)
+
+
+def test_opening_removes_speckle() -> None:
+    img = disc_image(320, 240, 30)
+    rng = np.random.default_rng(2)
+    for y, x in zip(rng.integers(0, 478, 100), rng.integers(0, 638, 100), strict=True):
+        img[y : y + 2, x : x + 2] = TARGET_BGR  # 2 x 2 red specks (a single pixel has no contour area)
+    plain = RedTargetDetector(RedTargetDetectorConfig(min_area_px=0.0)).candidates(img)
+    opened = RedTargetDetector(RedTargetDetectorConfig(min_area_px=0.0, open_px=3)).candidates(img)
+    assert len(opened) == 1 < len(plain)
+
+
+# --------------------------------------------------------------------------------------------------
+# Real photos
+# --------------------------------------------------------------------------------------------------
+
+
+def test_real_photo_red_leds_are_found_and_markers_ignored(real_dir: Path) -> None:
+    """The only real photo with red objects: the Hubsan quadrotor's two red LEDs (nfold_marker_real_photo,
+    3264 x 2448; the glows around (610, 683) and (663, 1609) px, read off the photo). Both are the two
+    biggest red contours; nothing red on the two black-and-white n-fold markers (MANIFEST: marker tips at
+    about (931, 1071) and (2274, 1265))."""
+    img = cv2.imread(str(real_dir / "nfold_marker_real_photo" / "hubsanwithmarker.jpg"))
+    assert img is not None
+    det = RedTargetDetector()
+    blobs = det.candidates(img)
+    leds = np.array([[610.0, 683.0], [663.0, 1609.0]])
+    top2 = np.array([b.centroid for b in blobs[:2]])
+    d = np.linalg.norm(top2[:, None, :] - leds[None, :, :], axis=2)
+    assert d.min(axis=0).max() < 60  # each LED glow is one of the two biggest contours
+    for marker in ((931.0, 1071.0), (2274.0, 1265.0)):
+        assert all(np.hypot(*(b.centroid - marker)) > 250 for b in blobs)
+    (o,) = det.detect(img, 0.0)
+    assert np.linalg.norm(leds - o.pixels[0], axis=1).min() < 60
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "aruco_charuco_real_photos/img_00.jpg",
+        "aruco_charuco_real_photos/chocclusion_original.jpg",
+        "fisheye_ocamcalib/img0.jpg",
+        "apriltag_real_photos/33369213973_9d9bb4cc96_c.jpg",
+        "apriltag_real_photos/34139872896_defdb2f8d9_c.jpg",
+    ],
+)
+def test_real_photos_without_red_give_nothing(real_dir: Path, name: str) -> None:
+    img = cv2.imread(str(real_dir / name))
+    assert img is not None
+    assert RedTargetDetector().detect(img, 0.0) == []
