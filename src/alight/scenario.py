@@ -73,6 +73,25 @@ class PerceptionSpec(_Strict):
     """Horizontal and vertical field of view of the downward camera (deg); the pad centre must be inside."""
     max_range_m: PositiveFloat = 25.0
     """Beyond this distance the pad is too small to detect (m)."""
+    mitigation: Literal["none", "gate", "shape", "gate+shape"] = "none"
+    """False-lock mitigation of the colour-filter detector (``kim_kaist``): none (paper 003's biggest red
+    contour), gating with the estimator's predicted pixel, shape checks, or both."""
+
+
+class DistractorSpecModel(_Strict):
+    """Red objects painted on the ground, per 20 m ground tile (``alight.sim.textures.DistractorSpec``)."""
+
+    count: Annotated[int, Field(ge=0, le=500)] = 8
+    size_m: PositiveFloat = 0.8
+    """Diameter of a disc, long side of a rectangle (m)."""
+    shape: Literal["disc", "rect", "mixed"] = "mixed"
+    aspect: Annotated[float, Field(ge=1, allow_inf_nan=False)] = 2.0
+    color_bgr: tuple[
+        Annotated[int, Field(ge=0, le=255)],
+        Annotated[int, Field(ge=0, le=255)],
+        Annotated[int, Field(ge=0, le=255)],
+    ] = (40, 40, 200)
+    color_jitter_dn: Annotated[float, Field(ge=0, le=255, allow_inf_nan=False)] = 25.0
 
 
 class CameraSpec(_Strict):
@@ -89,6 +108,15 @@ class CameraSpec(_Strict):
     exposure_gain: PositiveFloat = 1.0
     """Brightness gain (exposure change)."""
     gamma: PositiveFloat = 1.0
+    color: bool | None = None
+    """Render BGR colour images; None: the preset decides (colour for presets whose detector needs it)."""
+    illumination_gain_bgr: tuple[PositiveFloat, PositiveFloat, PositiveFloat] = (1.0, 1.0, 1.0)
+    """Per-channel gain of the light (white balance / colour temperature), applied before the gamma."""
+    brightness_drift: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = 0.0
+    """Relative amplitude of a slow sinusoidal brightness change (clouds passing the sun); 0: none."""
+    brightness_drift_period_s: PositiveFloat = 60.0
+    distractors: DistractorSpecModel | None = None
+    """Coloured objects on the ground that are not the target (the false targets of a colour filter)."""
 
 
 class FaultSpec(_Strict):
@@ -122,7 +150,9 @@ class MissionSpec(_Strict):
     takeoff_altitude_m: PositiveFloat = 4.0
     explore_altitude_m: PositiveFloat = 12.0
     track_height_m: PositiveFloat = 2.5
-    land_speed_mps: PositiveFloat = 0.4
+    land_speed_mps: PositiveFloat | None = None
+    """Descent speed of the landing ramp (m/s); None: the preset's (0.4, and paper 003's 0.1 for
+    ``kim_kaist``)."""
     motor_cutoff_range_m: PositiveFloat = 0.03
     land_commit_height_m: PositiveFloat = 0.6
     """Below this height above the pad a lost target no longer aborts the descent (m): the camera sees
@@ -168,6 +198,15 @@ class EstimatorSpec(_Strict):
 class ControllerSpec(_Strict):
     position_bandwidth_rad_s: PositiveFloat = 3.0
     """Natural frequency of the position loop, critically damped (rad/s)."""
+    integral_gain: NonNegFloat | None = None
+    """Integral gain on the position error per axis (1/s^3), as an autopilot's position loop has; None:
+    the preset's (off for ``falanga2017``/``groundtruth``/``kim_kaist``, on for ``zamanakos_sdu``, which
+    flies on PX4's integrating loops). Must be below kp * kv of the position loop."""
+    integral_limit_mps2: PositiveFloat = 6.0
+    """Largest acceleration the integral may command per axis (m/s^2)."""
+    l1_adaptive: bool | None = None
+    """L1 adaptive augmentation of the outer loop (paper 003); None: the preset decides (on for
+    ``kim_kaist``, off otherwise)."""
 
 
 class ContactSpec(_Strict):

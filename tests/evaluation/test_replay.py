@@ -207,3 +207,12 @@ def test_bad_input(tmp_path):
     # a minimal log (no platform, no modes) still gives a GIF
     path = write_replay(log, tmp_path / "a.gif", fps=2.0)
     assert len(_decoded(path)) == 5
+
+
+def test_frame_recorder_turns_the_cameras_bgr_into_rgb():
+    bgr = np.zeros((20, 30, 3), np.uint8)
+    bgr[..., 2] = 200  # red in OpenCV's channel order
+    rec = FrameRecorder(rate_hz=10.0, max_width_px=376)
+    rec(0.0, bgr, [])
+    rgb = rec.frames[0][1]
+    assert rgb[0, 0].tolist() == [200, 0, 0]

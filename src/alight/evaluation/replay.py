@@ -117,6 +117,8 @@ class FrameRecorder:
             observations = [_scaled(o, size[0] / w, size[1] / h) for o in observations]
         else:
             img = img.copy()
+        if img.ndim == 3:  # the camera's images are OpenCV's BGR; the replay's frames are RGB
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
         self.frames.append((t, img, list(observations)))
 
 

@@ -44,7 +44,7 @@ from alight.sim.platform import Platform, PlatformConfig
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
-from alight.sim.textures import make_ground_texture
+from alight.sim.textures import DistractorSpec, make_ground_texture
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import GustWind, NoWind, SteadyWind
@@ -176,15 +176,24 @@ def run_mission(
     renderer = None
     if preset.uses_camera:
         cs = s.camera
+        color = preset.color_camera if cs.color is None else cs.color
+        distractors = None
+        if cs.distractors is not None:
+            distractors = DistractorSpec(**cs.distractors.model_dump())
+        ground = make_ground_texture(cs.ground, rng_render, color=color, distractors=distractors)
         renderer = Renderer(
             preset.camera,
-            make_ground_texture(cs.ground, rng_render),
+            ground,
             preset.pad,
             RenderOptions(
                 noise_sigma_dn=cs.noise_dn,
                 exposure_time_s=cs.exposure_s,
                 exposure_gain=cs.exposure_gain,
                 gamma=cs.gamma,
+                color=color,
+                illumination_gain_bgr=cs.illumination_gain_bgr,
+                brightness_drift=cs.brightness_drift,
+                brightness_drift_period_s=cs.brightness_drift_period_s,
             ),
             rng_render,
             R_BC=preset.mount.R_BC,
@@ -301,7 +310,7 @@ def run_mission(
             R_WB = quat_to_rotmat(q_WB)
             if renderer is not None:
                 p_WC, R_WC = camera_pose_W(p_WB, R_WB, preset.mount)
-                frame: object = renderer.render(p_WC, R_WC, (truth_p[k], float(truths.yaw[k])), w_WB_B)
+                frame: object = renderer.render(p_WC, R_WC, (truth_p[k], float(truths.yaw[k])), w_WB_B, t_s=t)
             else:
                 frame = truth_perception.observe(t, p_WB, R_WB, truth_p[k])
             pending.append((t + pc.latency_s, t, frame))

@@ -51,14 +51,27 @@ class EgoHistory:
         self.p = np.zeros((capacity, 3))
         self.q = np.zeros((capacity, 4))
         self.q[:, 3] = 1.0
+        self.v = np.zeros((capacity, 3))
         self._i = 0
         self._n = 0
 
-    def add(self, t: float, p_WB: FloatArray, q_WB: FloatArray) -> None:
+    def add(self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None) -> None:
         i = self._i
         self.t[i], self.p[i], self.q[i] = t, p_WB, q_WB
+        if v_WB is not None:
+            self.v[i] = v_WB
         self._i = (i + 1) % self.t.size
         self._n = min(self._n + 1, self.t.size)
+
+    def state_at(self, t: float) -> CapturePose | None:
+        """Position, attitude and velocity at time t (interpolated as :meth:`pose_at`), or None."""
+        pose = self.pose_at(t)
+        if pose is None:
+            return None
+        order = np.argsort(self.t)[-self._n :]
+        ts = self.t[order]
+        v = np.array([np.interp(t, ts, self.v[order, k]) for k in range(3)])
+        return CapturePose(pose[0], pose[1], v)
 
     def pose_at(self, t: float) -> tuple[FloatArray, FloatArray] | None:
         """(p_WB, R_WB) at time t, or None when t is outside the stored span by more than 50 ms."""
@@ -82,6 +95,15 @@ class EgoHistory:
         q1 = self.q[i1] if np.dot(self.q[i0], self.q[i1]) >= 0 else -self.q[i1]
         q = (1 - s) * self.q[i0] + s * q1
         return p, quat_to_rotmat(q / np.linalg.norm(q))
+
+
+@dataclass(frozen=True)
+class CapturePose:
+    """The ego state at an image's capture time, as estimators of image measurements need it."""
+
+    p_WB: FloatArray
+    R_WB: FloatArray
+    v_WB: FloatArray
 
 
 @dataclass
@@ -121,6 +143,11 @@ class Pipeline:
         self.history = EgoHistory()
         # Estimators of the relative position (paper 004's filter) take the vehicle's own motion as input.
         self._feed_ego = getattr(platform_estimator, "set_ego", None)
+        # Estimators with an image measurement model (paper 003's UKF) take the pixel itself, and may
+        # predict where the target will be for a detector that gates its candidates.
+        self._update_pixel = getattr(platform_estimator, "update_pixel", None)
+        self._predict_pixel = getattr(platform_estimator, "predict_pixel", None)
+        self._set_prediction = getattr(detector, "set_prediction", None)
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -186,8 +213,17 @@ class Pipeline:
         if self.detector is None:
             raise RuntimeError("this pipeline has no detector; feed observations with on_observations")
         self.stats.frames += 1
+        if self._set_prediction is not None:
+            self._set_prediction(*self._pixel_prediction(t_capture))
         observations = self.detector.detect(image, t_capture)
         return observations, self.on_observations(t_capture, observations)
+
+    def _pixel_prediction(self, t_capture: float) -> tuple[FloatArray | None, float | None]:
+        if self._predict_pixel is None or not self.platform_estimator.has_measurement:
+            return None, None
+        ego = self.history.state_at(t_capture)
+        pred = None if ego is None else self._predict_pixel(t_capture, ego)
+        return (None, None) if pred is None else pred
 
     def on_observations(self, t_capture: float, observations: list[Observation]) -> list[PlatformMeasurement]:
         """Geolocate observations of an image taken at ``t_capture`` and update the platform estimate."""
@@ -206,7 +242,13 @@ class Pipeline:
         self._target = None
         if self._feed_ego is not None:
             self._feed_ego(self.ego())
-        if self.platform_estimator.update(measurement):
+        if self._update_pixel is not None and best.pixels.shape[0] >= 1:
+            # The estimator fuses the pixel through its own camera model; the geolocated point above is
+            # what the pipeline reports (logs, detections) for the same image.
+            used = self._update_pixel(t_capture, best.pixels[0], self.history.state_at(t_capture))
+        else:
+            used = self.platform_estimator.update(measurement)
+        if used:
             self.stats.measurements += 1
             if self.stats.t_first_detection is None:
                 self.stats.t_first_detection = t_capture
@@ -253,7 +295,7 @@ class Pipeline:
     def command(self, t: float) -> Command:
         """The command to the low level (at the controller's rate)."""
         ego = self.ego()
-        self.history.add(t, ego.p_WB, ego.q_WB)
+        self.history.add(t, ego.p_WB, ego.q_WB, ego.v_WB)
         if self._feed_ego is not None:
             self._feed_ego(ego)
             self._target = None

@@ -20,17 +20,29 @@ from dataclasses import dataclass
 import numpy as np
 
 from alight.airframe import Airframe
+from alight.cameras import load_camera
+from alight.cameras.omni import OmniCamera
 from alight.cameras.pinhole import CameraMount, PinholeCamera
+from alight.control import Controller
 from alight.control.high_level import HighLevelController, HighLevelGains
+from alight.control.l1_adaptive import L1AugmentedController, L1Config
 from alight.control.rate import RateControllerGains
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
+from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
+from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
 from alight.pads.falanga_tag import FalangaTag
+from alight.pads.red_target import RedTarget
+from alight.pads.sdu_pad import SduPad
+from alight.perception.color_filter import RedTargetDetector, RedTargetDetectorConfig
 from alight.perception.falanga_tag import FalangaTagDetector
+from alight.perception.flat_earth import FlatEarthGeolocator
 from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
+from alight.perception.homography_geolocation import HomographyGeolocator
+from alight.perception.sdu_marker import SduMarkerDetector
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
 from alight.planning.min_jerk import EndConstraint
 
@@ -55,19 +67,21 @@ class Preset:
     mount: CameraMount
     rate_gains: RateControllerGains
     uses_camera: bool
-    camera: PinholeCamera | None = None
+    camera: PinholeCamera | OmniCamera | None = None
     """The camera model the runner renders through (vision presets)."""
     pad: object | None = None
     """The pad design the runner draws on the platform (vision presets)."""
+    color_camera: bool = False
+    """The detector needs colour (BGR) images."""
 
 
-def _mission_config(s: object) -> MissionConfig:
+def _mission_config(s: object, land_speed_mps: float = 0.4) -> MissionConfig:
     m = s.mission  # type: ignore[attr-defined]
     return MissionConfig(
         takeoff_altitude_m=m.takeoff_altitude_m,
         explore_altitude_m=m.explore_altitude_m,
         track_height_m=m.track_height_m,
-        land_speed_mps=m.land_speed_mps,
+        land_speed_mps=land_speed_mps if m.land_speed_mps is None else m.land_speed_mps,
         motor_cutoff_range_m=m.motor_cutoff_range_m,
         land_commit_height_m=m.land_commit_height_m,
         lost_timeout_s=m.lost_timeout_s,
@@ -77,10 +91,16 @@ def _mission_config(s: object) -> MissionConfig:
 
 
 def _flight_core(
-    s: object, airframe: Airframe, fov_rad: float
-) -> tuple[Mission, Guidance, HighLevelController, EgoEkf]:
+    s: object,
+    airframe: Airframe,
+    fov_rad: float,
+    *,
+    land_speed_mps: float = 0.4,
+    l1: bool = False,
+    integral_gain: float = 0.0,
+) -> tuple[Mission, Guidance, Controller, EgoEkf]:
     sc = s  # the Scenario; typed loosely to keep this module free of the scenario's import cycle
-    mission = Mission(_mission_config(sc))
+    mission = Mission(_mission_config(sc, land_speed_mps))
     p = sc.planner  # type: ignore[attr-defined]
     planner = CandidatePlanner(
         PlannerConfig.from_airframe(
@@ -104,8 +124,15 @@ def _flight_core(
             search_pattern=sc.mission.search_pattern,  # type: ignore[attr-defined]
         ),
     )
-    gains = HighLevelGains.from_bandwidth(sc.controller.position_bandwidth_rad_s)  # type: ignore[attr-defined]
-    controller = HighLevelController(airframe, gains)
+    cs = sc.controller  # type: ignore[attr-defined]
+    ki = integral_gain if cs.integral_gain is None else cs.integral_gain
+    gains = HighLevelGains.from_bandwidth(
+        cs.position_bandwidth_rad_s, ki=(ki, ki, ki), integral_limit=cs.integral_limit_mps2
+    )
+    controller: Controller = HighLevelController(airframe, gains)
+    use_l1 = l1 if sc.controller.l1_adaptive is None else sc.controller.l1_adaptive  # type: ignore[attr-defined]
+    if use_l1:
+        controller = L1AugmentedController(controller, L1Config())  # type: ignore[arg-type]
     ego = EgoEkf(_EGO_EKF_CONFIG)
     return mission, guidance, controller, ego
 
@@ -174,9 +201,84 @@ def build_falanga2017(s: object, airframe: Airframe, rng: np.random.Generator) -
     )
 
 
+def build_zamanakos_sdu(s: object, airframe: Airframe, rng: np.random.Generator) -> Preset:
+    """Paper 004 end to end: the landing marker of an n-fold marker and three ArUco landmarks
+    (adaptive kernel size), pixel to ground by the homography of the camera's field of view at the
+    altitude (the 8 steps of Sec. IV-A), the Kalman filter on the relative position with the vehicle's
+    velocity and acceleration as input and the detection delay compensated (Sec. IV-B), with the platform
+    velocity estimator. Guidance, planning and control are the flight core's."""
+    camera = load_preset_camera(s)
+    h_fov, v_fov = camera.fov_rad()
+    # PX4's position and velocity loops, which paper 004 flies on, integrate: without it a 12 m/s gust
+    # holds the vehicle ~0.9 m downwind of its reference.
+    mission, guidance, controller, ego = _flight_core(s, airframe, min(h_fov, v_fov), integral_gain=2.0)
+    mount = CameraMount.downward()
+    pad = SduPad.default(size_m=s.platform.pad_size_m)  # type: ignore[attr-defined]
+    pipeline = Pipeline(
+        ego_estimator=ego,
+        detector=SduMarkerDetector(pad, camera=camera),
+        # The deck's height above the ground is known to the operator of the vehicle that carries it; the
+        # paper intersects with the ground (z = 0), which biases every fix radially by d * h_deck / h.
+        geolocator=HomographyGeolocator(camera, mount, plane_z_W=s.platform.pad_height_m),  # type: ignore[attr-defined]
+        platform_estimator=SduKalmanFilter(SduKfConfig()),
+        mission=mission,
+        guidance=guidance,
+        controller=controller,
+    )
+    return Preset(
+        "zamanakos_sdu", pipeline, mount, RateControllerGains(), uses_camera=True, camera=camera, pad=pad
+    )
+
+
+def build_kim_kaist(s: object, airframe: Airframe, rng: np.random.Generator) -> Preset:
+    """Paper 003 end to end: a downward 186 deg fisheye (Scaramuzza model), the red target found by the
+    colour filter (Alg. 1-2, biggest red contour), its pixel fused by the UKF with the fisheye
+    measurement model (eq. 10-27), flat-earth geolocation (eq. 5-9) for what the pipeline reports, the
+    L1 adaptive augmentation of the outer loop, and the paper's descent: a -0.1 m/s altitude ramp while
+    holding over the target. Planning and control below the L1 loop are the flight core's."""
+    sc = s
+    path = sc.camera.calibration  # type: ignore[attr-defined]
+    if path is None:
+        # No resolution is given in the paper; 640 x 480 with the 186 deg circle inscribed, like the real
+        # fisheye calibration in the test data.
+        camera = OmniCamera.synthetic(640, 480, fov_deg=186.0)
+    else:
+        camera = load_camera(path)
+    # The omnidirectional view sees the whole search area's width from the exploration altitude: the
+    # coverage pattern is spaced by a 120 deg footprint (the target is too small to find beyond it).
+    mission, guidance, controller, ego = _flight_core(
+        s, airframe, math.radians(120.0), land_speed_mps=0.1, l1=True
+    )
+    mount = CameraMount.downward()
+    pad_height = sc.platform.pad_height_m  # type: ignore[attr-defined]
+    target = RedTarget.default(size_m=sc.platform.pad_size_m)  # type: ignore[attr-defined]
+    detector = RedTargetDetector(RedTargetDetectorConfig(mitigation=sc.perception.mitigation))  # type: ignore[attr-defined]
+    pipeline = Pipeline(
+        ego_estimator=ego,
+        detector=detector,
+        geolocator=FlatEarthGeolocator(camera, mount, deck_height_m=pad_height),
+        platform_estimator=KimUkf(KimUkfConfig(deck_height=pad_height), camera=camera, mount=mount),
+        mission=mission,
+        guidance=guidance,
+        controller=controller,
+    )
+    return Preset(
+        "kim_kaist",
+        pipeline,
+        mount,
+        RateControllerGains(),
+        uses_camera=True,
+        camera=camera,
+        pad=target,
+        color_camera=True,
+    )
+
+
 PRESETS: dict[str, Callable[[object, Airframe, np.random.Generator], Preset]] = {
     "groundtruth": build_groundtruth,
     "falanga2017": build_falanga2017,
+    "zamanakos_sdu": build_zamanakos_sdu,
+    "kim_kaist": build_kim_kaist,
 }
 
 
