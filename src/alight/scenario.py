@@ -209,6 +209,33 @@ class ControllerSpec(_Strict):
     ``kim_kaist``, off otherwise)."""
 
 
+class QosSpec(_Strict):
+    """One quality-of-service setting of the detector (``alight.energy.QosSetting``)."""
+
+    rate_hz: PositiveFloat = 30.0
+    """Frames processed per second; the others are skipped (the camera's rate bounds it)."""
+    image_scale: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = 1.0
+    """Resize factor of the image before detection."""
+    max_kernel_px: Annotated[int, Field(ge=5)] = 41
+    """Largest n-fold kernel size the adaptive search may try (px)."""
+
+
+class EnergySpec(_Strict):
+    """Compute energy of the onboard detector (``zamanakos_sdu``), on a device power profile."""
+
+    device: Literal["jetson_nano", "odroid_xu4"] = "jetson_nano"
+    """Companion computer (``alight/energy/devices``): paper 004 flies a Jetson Nano."""
+    mode: str | None = None
+    """Power mode of the device (e.g. ``10W``, ``5W``); None: its default."""
+    include_idle: bool = False
+    """Add the device's idle power over the whole flight (powprofiler's total-system energy)."""
+    qos: Literal["phase", "fixed"] = "phase"
+    """``phase``: the quality changes with the mission phase (explore, track, land); ``fixed``: the
+    setting below throughout."""
+    fixed: QosSpec = Field(default_factory=QosSpec)
+    """The setting of ``qos: fixed`` (default: the highest quality of the shipped model)."""
+
+
 class ContactSpec(_Strict):
     gear_half_width_m: NonNegFloat = 0.2
     max_vertical_speed_mps: PositiveFloat = 1.0
@@ -233,6 +260,7 @@ class Scenario(_Strict):
     estimator: EstimatorSpec = Field(default_factory=EstimatorSpec)
     controller: ControllerSpec = Field(default_factory=ControllerSpec)
     contact: ContactSpec = Field(default_factory=ContactSpec)
+    energy: EnergySpec = Field(default_factory=EnergySpec)
     name: str | None = None
     """Free text naming the scenario in reports."""
 

@@ -46,6 +46,8 @@ _RESULT_KEYS = (
     "detections",
     "go_arounds",
     "platform_estimate_rmse_m",
+    "false_detections",
+    "false_lock",
     "simulated_time_s",
 )
 

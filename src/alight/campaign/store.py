@@ -44,6 +44,8 @@ RESULT_COLUMNS = (
     "detections",
     "go_arounds",
     "platform_estimate_rmse_m",
+    "false_detections",
+    "false_lock",
     "simulated_time_s",
     "wall_time_s",
     "mission_dir",
@@ -60,6 +62,7 @@ NUMERIC_COLUMNS = (
     "detections",
     "go_arounds",
     "platform_estimate_rmse_m",
+    "false_detections",
     "simulated_time_s",
     "wall_time_s",
 )

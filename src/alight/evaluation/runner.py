@@ -54,6 +54,7 @@ PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
 POST_CONTACT_S = 1.0  # simulated after a landing, with the vehicle resting on the pad
 ABORT_HOLD_S = 2.0  # an aborted mission ends this long after the abort
+FALSE_LOCK_S = 1.0  # tracking or landing on an estimate > 2 pad sizes from the pad this long: a false lock
 
 
 @dataclass
@@ -242,6 +243,8 @@ def run_mission(
     motor_N = np.empty((motor_t.size, 4))
     n_motor = 0
 
+    false_detections = 0
+    off_target_s = 0.0
     k = 0
     t = 0.0
     batch_xs = batch_imu = np.empty((0, 0))
@@ -323,8 +326,13 @@ def run_mission(
                     frame_sink(t_cap, frame, observations)  # type: ignore[arg-type]
             else:
                 measurements = pipeline.on_observations(t_cap, frame)  # type: ignore[arg-type]
-            if log is not None:
-                for m in measurements:
+            # A measurement farther from the pad's true centre than the pad's size (at its capture
+            # time) comes from something else in the image: a false detection.
+            k_cap = min(int(round(t_cap / TICK_DT)), n_ticks)
+            for m in measurements:
+                if math.dist(m.p_WP[0:2], truth_p[k_cap][0:2]) > pad:
+                    false_detections += 1
+                if log is not None:
                     log.add_detection(m.t, m.p_WP)
 
         # -- decisions ----------------------------------------------------------------------------------
@@ -332,6 +340,11 @@ def run_mission(
             mode = pipeline.step(t).mode
             if mode is Mode.ABORT and t_abort is None:
                 t_abort = t
+            if mode is Mode.TRACK or mode is Mode.LAND:
+                # Locked onto something else: the estimate the vehicle follows is far from the pad.
+                est = pipeline.target(t)
+                if est is not None and math.dist(est.p_WP[0:2], truth_p[k][0:2]) > 2.0 * pad:
+                    off_target_s += every_mission * TICK_DT
         if k % every_control == 0:
             cmd = pipeline.command(t)
             thrust_N, w_cmd, motors_on = cmd.thrust_N, cmd.w_WB_B_cmd, not cmd.motors_off
@@ -384,6 +397,9 @@ def run_mission(
         "t_touchdown": t_contact,
     }
     energy = flight_energy_J(motor_t[:n_motor], motor_N[:n_motor]) if n_motor > 1 else None
+    compute_J = None
+    if preset.energy_model is not None and hasattr(pipeline.detector, "energy_J"):
+        compute_J = pipeline.detector.energy_J(preset.energy_model, duration_s=t)  # type: ignore[union-attr]
     rmse = None
     if arrays is not None and len(arrays["t"]) > 1:
         err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
@@ -406,12 +422,16 @@ def run_mission(
         "time_landing_start_s": stats.t_landing_start,
         "time_to_land_s": t_contact if outcome is Outcome.LANDED else None,
         "energy_flight_J": energy,
-        "energy_compute_J": None,
+        "energy_compute_J": compute_J,
+        "frames_processed": getattr(pipeline.detector, "frames_processed", stats.frames),
         "detections": stats.measurements,
         "rejected_measurements": stats.rejected_measurements,
         "go_arounds": pipeline.mission.go_arounds,
         "final_mode": pipeline.status.mode.value,
         "platform_estimate_rmse_m": rmse,
+        "false_detections": false_detections,
+        "false_lock": off_target_s > FALSE_LOCK_S,
+        "off_target_s": off_target_s,
         "simulated_time_s": t,
         "wall_time_s": wall,
         "alight_version": alight.__version__,

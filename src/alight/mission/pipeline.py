@@ -148,6 +148,7 @@ class Pipeline:
         self._update_pixel = getattr(platform_estimator, "update_pixel", None)
         self._predict_pixel = getattr(platform_estimator, "predict_pixel", None)
         self._set_prediction = getattr(detector, "set_prediction", None)
+        self._set_mode = getattr(detector, "set_mode", None)
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -281,6 +282,8 @@ class Pipeline:
         ego = self.ego()
         target = self.target(t)
         self.status = self.mission.step(t, ego, target, self.range_m)
+        if self.status.changed and self._set_mode is not None:
+            self._set_mode(self.status.mode)  # a detector whose quality of service follows the phase
         if self.status.changed and self.status.mode is Mode.TAKEOFF:
             # Standing on the ground is a disturbance to an adaptive or integrating controller (the
             # ground holds the vehicle against a reference below it): start the flight from zero.

@@ -27,6 +27,7 @@ from alight.control import Controller
 from alight.control.high_level import HighLevelController, HighLevelGains
 from alight.control.l1_adaptive import L1AugmentedController, L1Config
 from alight.control.rate import RateControllerGains
+from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosDetector, QosEnergyModel, QosSetting
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
@@ -73,6 +74,8 @@ class Preset:
     """The pad design the runner draws on the platform (vision presets)."""
     color_camera: bool = False
     """The detector needs colour (BGR) images."""
+    energy_model: QosEnergyModel | None = None
+    """The compute-energy model of the detector's quality-of-service settings, when it has one."""
 
 
 def _mission_config(s: object, land_speed_mps: float = 0.4) -> MissionConfig:
@@ -214,9 +217,16 @@ def build_zamanakos_sdu(s: object, airframe: Airframe, rng: np.random.Generator)
     mission, guidance, controller, ego = _flight_core(s, airframe, min(h_fov, v_fov), integral_gain=2.0)
     mount = CameraMount.downward()
     pad = SduPad.default(size_m=s.platform.pad_size_m)  # type: ignore[attr-defined]
+    es = s.energy  # type: ignore[attr-defined]
+    if es.qos == "fixed":
+        f = es.fixed
+        policy = PhasePolicy.fixed(QosSetting(f.rate_hz, f.image_scale, f.max_kernel_px))
+    else:
+        policy = DEFAULT_PHASE_POLICY
+    energy_model = QosEnergyModel.load(device=es.device, mode=es.mode, include_idle=es.include_idle)
     pipeline = Pipeline(
         ego_estimator=ego,
-        detector=SduMarkerDetector(pad, camera=camera),
+        detector=QosDetector(SduMarkerDetector(pad, camera=camera), policy),
         # The deck's height above the ground is known to the operator of the vehicle that carries it; the
         # paper intersects with the ground (z = 0), which biases every fix radially by d * h_deck / h.
         geolocator=HomographyGeolocator(camera, mount, plane_z_W=s.platform.pad_height_m),  # type: ignore[attr-defined]
@@ -226,7 +236,14 @@ def build_zamanakos_sdu(s: object, airframe: Airframe, rng: np.random.Generator)
         controller=controller,
     )
     return Preset(
-        "zamanakos_sdu", pipeline, mount, RateControllerGains(), uses_camera=True, camera=camera, pad=pad
+        "zamanakos_sdu",
+        pipeline,
+        mount,
+        RateControllerGains(),
+        uses_camera=True,
+        camera=camera,
+        pad=pad,
+        energy_model=energy_model,
     )
 
 
