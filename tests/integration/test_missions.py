@@ -74,6 +74,63 @@ def test_falanga2017_mission_lands_on_vision_alone(path: str, speed: float, seed
     assert r["time_first_detection_s"] < r["time_landing_start_s"] < r["time_to_land_s"]
 
 
+# kim_kaist (paper 003) end to end: rendered colour fisheye, colour filter, pixels into the UKF, L1
+# augmentation, the -0.1 m/s descent; in the gust model, as issue 5's table.
+@pytest.mark.slow
+@pytest.mark.parametrize(("speed", "seed"), [(1.0, 1), (3.0, 2)])
+def test_kim_kaist_mission_lands_in_gusts(speed: float, seed: int) -> None:
+    s = scenario_from_dict(
+        {
+            "preset": "kim_kaist",
+            "seed": seed,
+            "duration_s": 90.0,
+            "platform": {"path": "straight", "speed_mps": speed},
+            "wind": {"model": "gust"},
+        }
+    )
+    r = run_mission(s, record=False).result
+    assert r["outcome"] == "landed", r["mode_history"]
+    assert r["touchdown_error_m"] < 0.3
+    assert r["detections"] > 100 and r["false_detections"] == 0 and not r["false_lock"]
+    # the paper's ramp: at 0.1 m/s the descent from the tracking height takes over 15 s
+    assert r["time_to_land_s"] - r["time_landing_start_s"] > 15.0
+
+
+# zamanakos_sdu (paper 004) end to end: n-fold + ArUco marker, homography, delay-compensated KF, QoS.
+@pytest.mark.slow
+@pytest.mark.parametrize(("path", "wind", "seed"), [("straight", "none", 2), ("tractor", "gust", 1)])
+def test_zamanakos_sdu_mission_lands(path: str, wind: str, seed: int) -> None:
+    s = scenario_from_dict(
+        {
+            "preset": "zamanakos_sdu",
+            "seed": seed,
+            "duration_s": 90.0,
+            "platform": {"path": path, "speed_mps": 1.5},
+            "wind": {"model": wind, "gust_power_N": 7.76},
+        }
+    )
+    r = run_mission(s, record=False).result
+    assert r["outcome"] == "landed", r["mode_history"]
+    assert r["touchdown_error_m"] < 0.3
+    assert r["detections"] > 50 and r["false_detections"] == 0
+    assert r["energy_compute_J"] > 0 and r["frames_processed"] < r["simulated_time_s"] * 20.0
+
+
+@pytest.mark.slow
+def test_phase_adaptive_quality_costs_less_compute_than_the_highest() -> None:
+    base = {
+        "preset": "zamanakos_sdu",
+        "seed": 2,
+        "duration_s": 60.0,
+        "platform": {"path": "straight", "speed_mps": 1.5},
+        "perception": {"rate_hz": 30.0},
+    }
+    phase = run_mission(scenario_from_dict({**base, "energy": {"qos": "phase"}}), record=False).result
+    fixed = run_mission(scenario_from_dict({**base, "energy": {"qos": "fixed"}}), record=False).result
+    assert phase["outcome"] == fixed["outcome"] == "landed"
+    assert phase["energy_compute_J"] < 0.7 * fixed["energy_compute_J"]
+
+
 @pytest.mark.slow
 def test_same_seed_same_mission_and_seeds_differ() -> None:
     base = {"preset": "groundtruth", "duration_s": 30.0, "platform": {"path": "circle", "speed_mps": 2.0}}
@@ -168,4 +225,4 @@ def test_every_example_scenario_validates() -> None:
     assert len(examples) >= 6
     for path in examples:
         s = load_scenario(path)
-        assert s.preset in ("groundtruth", "falanga2017"), path
+        assert s.preset in ("groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"), path
