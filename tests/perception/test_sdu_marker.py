@@ -245,3 +245,16 @@ def test_mismatched_configuration_raises() -> None:
         SduMarkerDetector(PAD, nfold_sigma_px=0.0)
     with pytest.raises(ValueError):
         SduMarkerDetector(PAD, gate_frac=-1.0)
+
+
+def test_a_lone_small_aruco_marker_does_not_gate_out_a_good_tip() -> None:
+    from alight.perception.sdu_marker import SduSource
+
+    det = SduMarkerDetector(SduPad.default(1.5))
+    square = np.array([[0.0, 0.0], [12.0, 0.0], [12.0, 12.0], [0.0, 12.0]])  # a 12 px marker
+    tip = SduSource("nfold", np.array([100.0, 100.0]), 0.3, None, 0.95, square[:1], np.zeros((1, 3)), True)
+    lone = SduSource("aruco:1", np.array([108.0, 104.0]), 4.0, None, 0.4, square, np.zeros((4, 3)), True)
+    kept = det._gate([tip, lone])
+    assert all(s.used for s in kept)  # 8.9 px apart, within 3 sigma of the lone marker's 4 px
+    far = SduSource("aruco:1", np.array([125.0, 100.0]), 4.0, None, 0.4, square, np.zeros((4, 3)), True)
+    assert not det._gate([tip, far])[0].used  # 25 px: beyond both gates, the decoded marker wins

@@ -23,7 +23,8 @@ What this detector does, per image:
 4. a gate against outliers (ours; the paper takes the plain mean): the reference is the median of the
    ArUco estimates (their ids are decoded, so they are the harder ones to fake) or, without ArUco, the
    n-fold tip; an estimate farther than ``max(gate_min_px, gate_frac x the pad's side in pixels)`` from
-   it is not used;
+   it, and farther than 3 sigma of its difference to the reference, is not used (a lone small marker
+   does not gate out a good tip);
 5. the fused pixel: the mean of the used estimates weighted by their inverse variances (the paper's
    mean when the variances are equal). Variances: ``nfold_sigma_px^2`` for the tip; for an ArUco
    estimate, the first-order propagation of ``aruco_corner_sigma_px`` on each corner coordinate through
@@ -303,6 +304,10 @@ class SduMarkerDetector:
         if len(sources) < 2 or not aru:
             return sources
         ref = np.median(np.array([s.pixel for s in aru]), axis=0)
+        # The reference is only as good as the markers it comes from: a lone marker of a few pixels
+        # extrapolates the pad centre with a sigma of several pixels, and must not gate out an n-fold
+        # tip that agrees with it within that uncertainty (3 sigma of the difference).
+        ref_sigma = float(np.median([s.sigma_px for s in aru])) / math.sqrt(len(aru))
         side_px = []
         for s in aru:
             e = s.points[[1, 2, 3, 0]] - s.points
@@ -311,7 +316,8 @@ class SduMarkerDetector:
         gate = max(self.gate_min_px, self.gate_frac * pad_px)
         out = []
         for s in sources:
-            ok = bool(np.hypot(*(s.pixel - ref)) <= gate)
+            radius = max(gate, 3.0 * math.hypot(s.sigma_px, ref_sigma))
+            ok = bool(np.hypot(*(s.pixel - ref)) <= radius)
             out.append(s if ok else _replace_used(s, False))
         return out
 
