@@ -27,6 +27,7 @@ from alight.planning.exploration import (
     ExplorationRoute,
     footprint_width_m,
     lawnmower_waypoints,
+    ring_waypoints,
     spiral_waypoints,
 )
 from alight.planning.min_jerk import MinJerkTrajectory
@@ -58,6 +59,11 @@ class GuidanceConfig:
     until the range finder stops the motors rather than hovering just above the pad (m)."""
     yaw: float = 0.0
     """Heading held throughout (rad)."""
+    search_expansions: int = 2
+    """After a full pass over the search area without a sighting, search a ring around it this many times
+    (a moving platform that was not found has most likely driven out of the area)."""
+    search_growth_m: float = 20.0
+    """Each expansion grows the searched area by this much on every side (m)."""
 
 
 def _rest_to_rest(
@@ -97,6 +103,7 @@ class Guidance:
         self._mode: Mode | None = None
         self._traj: MinJerkTrajectory | None = None
         self._route: ExplorationRoute | None = None
+        self._expansions = 0
         self._hold: Reference | None = None
         self._mode_t0 = 0.0
         self._z_entry = 0.0
@@ -117,6 +124,13 @@ class Guidance:
         entered = mode is not self._mode
         if entered:
             self._enter(t, mode, ego, hover_point_W)
+        elif (
+            mode is Mode.EXPLORE
+            and self._route is not None
+            and self._expansions < self.config.search_expansions
+            and self._route.done(t)
+        ):
+            self._expand_search(t, ego)
         if mode is Mode.TRACK and target is not None and estimator is not None:
             self._replan_tracking(t, ego, estimator, target)
 
@@ -151,6 +165,7 @@ class Guidance:
                 t, ego.p_WB, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2
             )
         elif mode is Mode.EXPLORE:
+            self._expansions = 0
             x0, x1, y0, y1 = cfg.search_area
             spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
             if cfg.search_pattern == "spiral":
@@ -169,6 +184,20 @@ class Guidance:
         elif mode is Mode.ABORT:
             goal = np.array([p0[0], p0[1], mcfg.explore_altitude_m])
             self._traj = _rest_to_rest(t, p0, v0 * 0.0, goal, cfg.cruise_speed_mps / 2)
+
+    def _expand_search(self, t: float, ego: EgoState) -> None:
+        """The next ring around the search area (``search_growth_m`` wide), flown in loops."""
+        cfg, mcfg = self.config, self.mission_config
+        self._expansions += 1
+        x0, x1, y0, y1 = cfg.search_area
+        spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
+        waypoints = ring_waypoints(
+            x0, x1, y0, y1,
+            cfg.search_growth_m * (self._expansions - 1), cfg.search_growth_m * self._expansions,
+            mcfg.explore_altitude_m, spacing,
+        )  # fmt: skip
+        p0, v0, _ = self._start_state(t, ego)
+        self._route = ExplorationRoute(waypoints, t0=t, p0=p0, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps)
 
     def _track_height(self, t: float, ego: EgoState, target: PlatformEstimate, initialized: bool) -> float:
         """Height above the pad to track at (m).

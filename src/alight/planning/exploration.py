@@ -35,7 +35,13 @@ from alight.planning.min_jerk import (
 )
 from alight.types import GRAVITY_MPS2, FloatArray
 
-__all__ = ["footprint_width_m", "lawnmower_waypoints", "spiral_waypoints", "ExplorationRoute"]
+__all__ = [
+    "footprint_width_m",
+    "lawnmower_waypoints",
+    "ring_waypoints",
+    "spiral_waypoints",
+    "ExplorationRoute",
+]
 
 
 def footprint_width_m(altitude_m: float, fov_rad: float, overlap: float = 0.0) -> float:
@@ -168,6 +174,42 @@ def spiral_waypoints(
     for i, (a, b) in enumerate(legs):
         out[2 * i] = (a[0], a[1], altitude_m)
         out[2 * i + 1] = (b[0], b[1], altitude_m)
+    return out
+
+
+def ring_waypoints(
+    x_min: float,
+    x_max: float,
+    y_min: float,
+    y_max: float,
+    grow_from_m: float,
+    grow_to_m: float,
+    altitude_m: float,
+    spacing_m: float,
+) -> FloatArray:
+    """Waypoints of rectangular loops around [x_min, x_max] x [y_min, y_max]: the band between the area
+    grown by ``grow_from_m`` and by ``grow_to_m`` on every side, loops ``spacing_m`` apart starting half a
+    spacing outside the inner edge, shape (2 L, 3) as :func:`spiral_waypoints` (each leg cut short by a
+    quarter spacing at both ends for the turn). For searching around an area already covered."""
+    vals = (x_min, x_max, y_min, y_max, grow_from_m, grow_to_m, altitude_m, spacing_m)
+    if not all(math.isfinite(v) for v in vals):
+        raise ValueError("ring bounds, altitude and spacing must be finite")
+    if not (x_max > x_min and y_max > y_min and spacing_m > 0 and grow_to_m > grow_from_m >= 0):
+        raise ValueError("ring_waypoints needs a non-empty area, spacing > 0 and grow_to > grow_from >= 0")
+    legs: list[tuple[tuple[float, float], tuple[float, float]]] = []
+    d = grow_from_m + 0.5 * spacing_m
+    while d <= grow_to_m + 1e-9 or not legs:
+        x0, x1, y0, y1 = x_min - d, x_max + d, y_min - d, y_max + d
+        corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+        legs += [(corners[i], corners[i + 1]) for i in range(4)]
+        d += spacing_m
+    out = np.empty((2 * len(legs), 3))
+    for i, (a, b) in enumerate(legs):
+        pa, pb = np.array(a), np.array(b)
+        u = (pb - pa) / float(np.linalg.norm(pb - pa))
+        inset = 0.25 * spacing_m
+        out[2 * i, :2], out[2 * i + 1, :2] = pa + inset * u, pb - inset * u
+        out[2 * i, 2] = out[2 * i + 1, 2] = altitude_m
     return out
 
 
