@@ -30,7 +30,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
             raise AlightError(f"--seed must be >= 0, got {args.seed}")
         scenario = scenario.with_seed(args.seed)
     out = Path(args.out)
-    run = fly_to_dir(scenario, out)
+    run = fly_to_dir(scenario, out, replay=args.replay)
     r = run.result
     err = r["touchdown_error_m"]
     err_txt = "-" if err is None else f"{err:.3f} m"
@@ -129,11 +129,14 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("scenario", help="scenario YAML file")
     fly.add_argument("--out", required=True, help="output directory")
     fly.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    fly.add_argument(
+        "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
+    )
     fly.set_defaults(func=_cmd_fly)
 
     det = sub.add_parser("detect", help="run a detector on images; one JSON line per image")
     det.add_argument("images", nargs="+")
-    det.add_argument("--detector", required=True, help="falanga | aruco | apriltag")
+    det.add_argument("--detector", required=True, help="falanga | aruco | apriltag | nfold | sdu | red")
     det.add_argument("--camera", default=None, help="camera calibration (OpenCV YAML) for the pose")
     det.set_defaults(func=_cmd_detect)
 

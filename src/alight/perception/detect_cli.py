@@ -57,14 +57,27 @@ def _apriltag_generic() -> Any:
     return ArucoPadDetector(None, cv2.aruco.DICT_APRILTAG_36h11)
 
 
+def _registry(name: str) -> Callable[[], Any]:
+    def make() -> Any:
+        from alight.perception import REGISTRY
+
+        return REGISTRY[name]()
+
+    return make
+
+
 DETECTORS: dict[str, Callable[[], Any]] = {
     "falanga": _falanga,
     "aruco": _aruco_pad,
     "apriltag": _apriltag_generic,
+    "nfold": _registry("nfold"),
+    "sdu": _registry("sdu"),
+    "red": _registry("red"),
 }
 """Detector names of ``alight detect``: ``falanga`` (paper 000's tag, 1.5 m), ``aruco`` (the AprilTag
 pad's layout: only its marker ids, with pad points for the pose), ``apriltag`` (every AprilTag 36h11
-marker, ids and corners only: for counting markers in any photo)."""
+marker, ids and corners only: for counting markers in any photo), ``nfold`` (paper 004's 4-fold marker
+alone), ``sdu`` (paper 004's n-fold + ArUco landing marker), ``red`` (paper 003's colour filter)."""
 
 
 def read_image(path: str) -> tuple[np.ndarray | None, str | None]:
