@@ -105,4 +105,4 @@ def test_unknown_detector_and_bad_camera_raise_before_any_image(tmp_path: Path) 
         run_detect(["x.png"], "nope", None, io.StringIO())
     with pytest.raises(InputError):
         run_detect(["x.png"], "falanga", str(tmp_path / "missing.yaml"), io.StringIO())
-    assert set(DETECTORS) == {"falanga", "aruco", "apriltag"}
+    assert set(DETECTORS) == {"falanga", "aruco", "apriltag", "nfold", "sdu", "red"}
