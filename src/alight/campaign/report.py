@@ -45,6 +45,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from scipy.stats import binomtest
 
+from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
 from alight.errors import InputError
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
 from alight.evaluation.replay import REPLAY_GIF
@@ -56,27 +57,10 @@ RESULTS_CSV = "results.csv"
 SUMMARY_JSON = "summary.json"
 MISSION_REPORT = "report.html"
 
-_ID_COLUMNS = ("mission_id", "condition_id", "preset", "replicate", "seed")
-_RESULT_COLUMNS = (
-    "outcome",
-    "success",
-    "touchdown_error_m",
-    "touchdown_rel_speed_mps",
-    "touchdown_rel_vertical_speed_mps",
-    "time_to_land_s",
-    "time_first_detection_s",
-    "energy_flight_J",
-    "energy_compute_J",
-    "detections",
-    "go_arounds",
-    "platform_estimate_rmse_m",
-    "simulated_time_s",
-    "wall_time_s",
-    "mission_dir",
-    "error",
-)
-_NUMERIC = tuple(c for c in _RESULT_COLUMNS if c not in ("outcome", "success", "mission_dir", "error"))
-OUTCOMES = ("landed", "crashed", "timeout", "aborted", "error")
+# The columns of results.csv are the store's (one definition for the writer and the reader).
+_ID_COLUMNS = ID_COLUMNS
+_RESULT_COLUMNS = RESULT_COLUMNS
+_NUMERIC = NUMERIC_COLUMNS
 
 MAX_FAILURE_ROWS = 400
 """Failures listed in the page; the rest are counted (results.csv has them all)."""
