@@ -69,6 +69,22 @@ def test_presets_share_the_seed_of_a_condition_and_replicate() -> None:
     assert len(distinct) == len(seeds)  # and different draws for different conditions / replicates
 
 
+def test_settings_in_same_seeds_across_are_flown_on_the_same_seeds() -> None:
+    grid = {"platform.speed_mps": [1.0, 2.0], "controller.l1_adaptive": [True, False]}
+    c = campaign_from_dict(
+        _campaign(grid=grid, seeds_per_condition=2, same_seeds_across=["controller.l1_adaptive"])
+    )
+    by_speed: dict[tuple[float, int], set[int]] = {}
+    for m in c.missions:
+        by_speed.setdefault((m.params["platform.speed_mps"], m.replicate), set()).add(m.seed)
+    assert all(len(s) == 1 for s in by_speed.values())  # L1 on and off: the same draws
+    assert len({next(iter(s)) for s in by_speed.values()}) == 4  # speeds and replicates still differ
+    plain = campaign_from_dict(_campaign(grid=grid, seeds_per_condition=2))
+    assert len({m.seed for m in plain.missions}) == 8
+    with pytest.raises(ConfigError, match="same_seeds_across"):
+        campaign_from_dict(_campaign(grid=grid, same_seeds_across=["wind.model"]))
+
+
 def test_mission_seed_is_the_spawn_tree() -> None:
     missions_branch, sample_branch = np.random.SeedSequence(7).spawn(2)
     for c, cond in enumerate(missions_branch.spawn(3)):
@@ -196,7 +212,8 @@ def test_examples_expand() -> None:
     assert all(m.scenario["duration_s"] <= 60 for m in smoke.missions)
 
     paper = load_campaign(ROOT / "examples" / "campaigns" / "paper_conditions.yaml")
-    assert paper.spec.seeds_per_condition == 20 and paper.presets == ["groundtruth", "falanga2017"]
+    presets = ["groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"]
+    assert paper.spec.seeds_per_condition == 20 and paper.presets == presets
     conds = [c.params for c in paper.conditions]
     for path in ("straight", "circle", "figure8"):
         for speed in (1.0, 2.0, 3.0, 4.2):
@@ -209,4 +226,4 @@ def test_examples_expand() -> None:
     gusts = sorted(c["wind.gust_power_N"] for c in conds if c["wind.model"] == "gust")
     assert gusts == [3.45, 7.76]
     assert all(math.isclose(m.scenario["perception"]["rate_hz"], 20.0) for m in paper.missions)
-    assert len(paper.missions) == len(conds) * 2 * 20
+    assert len(paper.missions) == len(conds) * 4 * 20

@@ -137,6 +137,10 @@ class CampaignSpec(_Strict):
     """Explicit conditions (dotted path -> value), appended after the grid's."""
     sample: dict[str, Any] | None = None
     """``n`` (draws per condition) and dotted path -> distribution."""
+    same_seeds_across: list[str] = Field(default_factory=list)
+    """Dotted paths whose values do not change the seeds: conditions that differ only in these share
+    their missions' seeds, for a paired comparison of settings (as presets always are), e.g. a
+    controller option or a quality-of-service policy flown on the same platforms, winds and noise."""
     duration_s: PositiveFloat | None = None
     """Overrides the base scenario's simulated duration (s)."""
     timeout_s: PositiveFloat = 600.0
@@ -347,10 +351,18 @@ def expand_campaign(
         conditions.append(Condition(index, cid, params))
         trees.append(tree)
 
+    unknown = sorted(set(spec.same_seeds_across) - set(paths))
+    if unknown:
+        raise ConfigError(f"{source}: same_seeds_across names {unknown}, which the campaign does not sweep")
+    # The seed branch of a condition: its index among the distinct conditions once the parameters that
+    # keep the seeds are left out (the condition's own index when there are none).
+    seed_index: dict[tuple[tuple[str, str], ...], int] = {}
     missions: list[PlannedMission] = []
     for cond, tree in zip(conditions, trees, strict=True):
+        key = tuple((p, repr(v)) for p, v in sorted(cond.params.items()) if p not in spec.same_seeds_across)
+        branch = seed_index.setdefault(key, len(seed_index)) if spec.same_seeds_across else cond.index
         for r in range(spec.seeds_per_condition):
-            seed = mission_seed(spec.seed, cond.index, r)
+            seed = mission_seed(spec.seed, branch, r)
             for preset in presets:
                 mid = mission_id(cond.condition_id, preset, r)
                 scenario = copy.deepcopy(tree)
