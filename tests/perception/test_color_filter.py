@@ -286,3 +286,17 @@ def test_real_photos_without_red_give_nothing(real_dir: Path, name: str) -> None
     img = cv2.imread(str(real_dir / name))
     assert img is not None
     assert RedTargetDetector().detect(img, 0.0) == []
+
+
+def test_circularity_above_a_squares_tells_the_disc_from_bigger_red_boxes() -> None:
+    import cv2
+
+    img = np.full((240, 320, 3), (60, 120, 60), np.uint8)
+    cv2.circle(img, (80, 120), 10, (40, 40, 200), -1, lineType=cv2.LINE_AA)  # the target: a disc
+    cv2.rectangle(img, (180, 100), (207, 127), (40, 40, 200), -1)  # a bigger red square
+    cv2.rectangle(img, (230, 30), (279, 54), (40, 40, 200), -1)  # a bigger red 2:1 box
+    plain = RedTargetDetector(RedTargetDetectorConfig(mitigation="none")).detect(img, 0.0)
+    assert plain and abs(plain[0].pixels[0][0] - 80) > 50  # the biggest red contour is a box
+    shape = RedTargetDetector(RedTargetDetectorConfig(mitigation="shape", min_circularity=0.8))
+    found = shape.detect(img, 0.0)
+    assert found and np.hypot(*(found[0].pixels[0] - (80, 120))) < 1.0

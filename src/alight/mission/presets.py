@@ -269,7 +269,12 @@ def build_kim_kaist(s: object, airframe: Airframe, rng: np.random.Generator) -> 
     mount = CameraMount.downward()
     pad_height = sc.platform.pad_height_m  # type: ignore[attr-defined]
     target = RedTarget.default(size_m=sc.platform.pad_size_m)  # type: ignore[attr-defined]
-    detector = RedTargetDetector(RedTargetDetectorConfig(mitigation=sc.perception.mitigation))  # type: ignore[attr-defined]
+    # With shape checks the target is a disc: a disc's circularity (4 pi A / P^2) is 1 and stays above
+    # 0.8 for the ellipses a fisheye makes of it up to ~60 deg off axis, while every rectangle, a square
+    # included (pi / 4 = 0.785), is below it: red boxes and tarpaulins are not taken for the target.
+    detector = RedTargetDetector(
+        RedTargetDetectorConfig(mitigation=sc.perception.mitigation, min_circularity=0.8)  # type: ignore[attr-defined]
+    )
     pipeline = Pipeline(
         ego_estimator=ego,
         detector=detector,
