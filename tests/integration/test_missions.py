@@ -98,7 +98,10 @@ def test_kim_kaist_mission_lands_in_gusts(speed: float, seed: int) -> None:
 
 # zamanakos_sdu (paper 004) end to end: n-fold + ArUco marker, homography, delay-compensated KF, QoS.
 @pytest.mark.slow
-@pytest.mark.parametrize(("path", "wind", "seed"), [("straight", "none", 2), ("tractor", "gust", 1)])
+@pytest.mark.parametrize(
+    ("path", "wind", "seed"),
+    [("straight", "none", 2), ("straight", "gust", 2), ("tractor", "none", 4), ("tractor", "gust", 1)],
+)
 def test_zamanakos_sdu_mission_lands(path: str, wind: str, seed: int) -> None:
     s = scenario_from_dict(
         {
