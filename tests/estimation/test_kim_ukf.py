@@ -523,3 +523,26 @@ def test_camera_measurement_model_with_a_pinhole() -> None:
     s = f.state(t)
     assert np.linalg.norm(s.p_WP[:2] - pT_t[:2]) < 0.1
     assert np.linalg.norm(s.v_WP[:2] - [1.0, 0.2]) < 0.15
+
+
+def test_confirmation_keeps_a_one_frame_sighting_from_becoming_a_track() -> None:
+    from types import SimpleNamespace
+
+    from alight.cameras.omni import OmniCamera
+    from alight.cameras.pinhole import camera_pose_W
+
+    cam = OmniCamera.synthetic(640, 480, fov_deg=186.0)
+    mount = CameraMount.downward()
+    ego = SimpleNamespace(p_WB=np.array([0.0, 0.0, 10.0]), v_WB=np.zeros(3), R_WB=np.eye(3))
+    p_WC, R_WC = camera_pose_W(ego.p_WB, ego.R_WB, mount)
+    px = cam.project((R_WC.T @ (np.array([1.0, 0.5, 0.0]) - p_WC))[None])[0]
+    ukf = KimUkf(KimUkfConfig(confirm_updates=3, confirm_window_s=0.2), camera=cam, mount=mount)
+    assert ukf.update_pixel(0.0, px, ego) is not None and not ukf.has_measurement  # tentative
+    # nothing for 0.5 s (longer than the window), then the pixel again: a new tentative track
+    ukf.update_pixel(0.5, px, ego)
+    assert not ukf.has_measurement
+    assert ukf.update_pixel(0.55, px, ego) and not ukf.has_measurement
+    assert ukf.update_pixel(0.6, px, ego) and ukf.has_measurement  # three in a row: confirmed
+    plain = KimUkf(KimUkfConfig(), camera=cam, mount=mount)
+    plain.update_pixel(0.0, px, ego)
+    assert plain.has_measurement  # the paper's filter trusts the first sighting

@@ -795,6 +795,14 @@ class KimUkfConfig:
     """Probability mass of the chi-square gate (2 dof)."""
     reinit_after_rejections: int = 5
     """Re-initialise from the measurement after this many consecutive gate rejections."""
+    confirm_updates: int = 0
+    """Track confirmation (ours; the paper trusts the first sighting): a new track is tentative until this
+    many measurements in a row (the first included) pass the gate, each pixel within ``confirm_window_s``
+    of the previous one, and
+    ``has_measurement`` is False until then. A tentative track that misses is replaced by the new pixel.
+    A red object that passes the detector's checks on a frame or two then never steers the vehicle."""
+    confirm_window_s: float = 0.5
+    """Longest gap between the updates that confirm a track (s)."""
     sigma_points: str = "merwe"
     """Sigma-point scheme: ``merwe`` (scaled, 2n+1), ``cubature`` (2n) or ``simplex`` (n+2)."""
     alpha: float = 1.0
@@ -826,6 +834,10 @@ class KimUkfConfig:
             raise ValueError(f"deck_height must be finite, got {self.deck_height}")
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must be in (0, 1), got {self.gate_probability}")
+        if self.confirm_updates < 0 or not (
+            math.isfinite(self.confirm_window_s) and self.confirm_window_s > 0
+        ):
+            raise ValueError("confirm_updates must be >= 0 and confirm_window_s finite and > 0")
         if self.reinit_after_rejections < 1:
             raise ValueError(f"reinit_after_rejections must be >= 1, got {self.reinit_after_rejections}")
         if self.sigma_points not in SIGMA_POINTS:
@@ -905,6 +917,7 @@ class KimUkf:
         self._x = np.zeros(N_STATE)
         self._P = np.eye(N_STATE)
         self._has = False
+        self._confirmed_n = 0  # pixel updates in a row that passed the gate since the track started
         self._t = math.nan
         self._t_now = math.nan
         self._p_a = np.zeros(3)
@@ -955,6 +968,7 @@ class KimUkf:
         self._v_a = v_new.copy()
         self._has = True
         self._consecutive_rejections = 0
+        self._confirmed_n += 1
 
     def _rejected(self, res: UpdateResult) -> bool:
         """Book-keeping of a refused update; True when the track should restart."""
@@ -1083,7 +1097,9 @@ class KimUkf:
             self.n_invalid += 1
             return False
         eta = euler_zyx(R_WC)
-        if not self._has:
+        tentative = self._confirmed_n < self.config.confirm_updates
+        if not self._has or (tentative and t - self._t > self.config.confirm_window_s):
+            self._confirmed_n = 0
             return self._init_pixel(t, z, p_WC, v_WC, eta, H)
         rho = self._rho(z)
         rho_ref = self._rho_prev if math.isfinite(self._rho_prev) else rho
@@ -1107,7 +1123,8 @@ class KimUkf:
             )
         self.last_nis = res.nis
         if not res.accepted:
-            if self._rejected(res):
+            if tentative or self._rejected(res):
+                self._confirmed_n = 0
                 self._init_pixel(t, z, p_WC, v_WC, eta, H)
             return False
         self._commit(t, x, P, p_WC, v_WC)
@@ -1238,8 +1255,9 @@ class KimUkf:
 
     @property
     def has_measurement(self) -> bool:
-        """True once a measurement initialised the filter (:meth:`state` works)."""
-        return self._has
+        """True once a measurement initialised the filter (:meth:`state` works) and, with
+        ``confirm_updates``, the track is confirmed."""
+        return self._has and self._confirmed_n >= self.config.confirm_updates
 
     @property
     def t_filter(self) -> float:

@@ -279,7 +279,16 @@ def build_kim_kaist(s: object, airframe: Airframe, rng: np.random.Generator) -> 
         ego_estimator=ego,
         detector=detector,
         geolocator=FlatEarthGeolocator(camera, mount, deck_height_m=pad_height),
-        platform_estimator=KimUkf(KimUkfConfig(deck_height=pad_height), camera=camera, mount=mount),
+        # With the mitigation on, a track must be confirmed by 5 gated pixels in a row (0.25 s at 20 Hz)
+        # before the vehicle follows it; the paper's version trusts the first sighting.
+        platform_estimator=KimUkf(
+            KimUkfConfig(
+                deck_height=pad_height,
+                confirm_updates=0 if sc.perception.mitigation == "none" else 5,  # type: ignore[attr-defined]
+            ),
+            camera=camera,
+            mount=mount,
+        ),
         mission=mission,
         guidance=guidance,
         controller=controller,
