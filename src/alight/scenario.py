@@ -75,7 +75,8 @@ class PerceptionSpec(_Strict):
     """Beyond this distance the pad is too small to detect (m)."""
     mitigation: Literal["none", "gate", "shape", "gate+shape"] = "none"
     """False-lock mitigation of the colour-filter detector (``kim_kaist``): none (paper 003's biggest red
-    contour), gating with the estimator's predicted pixel, shape checks, or both."""
+    contour), gating with the estimator's predicted pixel, shape checks, or both; any of them also makes
+    the estimator confirm a track (5 gated sightings in a row) before the vehicle follows it."""
 
 
 class DistractorSpecModel(_Strict):
