@@ -26,6 +26,7 @@ from alight.campaign.engines import MissionFn, MissionOutcome, MissionTask, func
 from alight.campaign.spec import Campaign, PlannedMission, load_campaign
 from alight.campaign.store import (
     CAMPAIGN_YAML,
+    RESULT_COLUMNS,
     ResultsStore,
     columns_for,
     read_lock,
@@ -35,20 +36,9 @@ from alight.campaign.store import (
 from alight.campaign.summary import write_summary
 from alight.errors import ConfigError, InputError
 
-_RESULT_KEYS = (
-    "touchdown_error_m",
-    "touchdown_rel_speed_mps",
-    "touchdown_rel_vertical_speed_mps",
-    "time_to_land_s",
-    "time_first_detection_s",
-    "energy_flight_J",
-    "energy_compute_J",
-    "detections",
-    "go_arounds",
-    "platform_estimate_rmse_m",
-    "false_detections",
-    "false_lock",
-    "simulated_time_s",
+# The result fields a row copies from result.json: the store's columns but those the run sets itself.
+_RESULT_KEYS = tuple(
+    c for c in RESULT_COLUMNS if c not in ("outcome", "success", "wall_time_s", "mission_dir", "error")
 )
 
 
