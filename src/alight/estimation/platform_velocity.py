@@ -23,6 +23,16 @@ kept as a speed and a heading, each low-passed on its own, and recombined as
   the current heading) or else ``atan2`` of the raw velocity when it is above ``heading_min_speed_mps``
   (below that its direction is noise and the heading is held).
 
+Measured yaw as increments (``measured_yaw_increments``): a complementary filter. The marker's orientation
+is fast and its change between two frames is unambiguous (far below half the fold period at any turn
+rate a ground vehicle reaches), but its value is known only modulo ``2 pi / yaw_fold`` (the n-fold marker
+alone: 2 pi / n) and only up to how the pad was mounted on the vehicle; the direction of travel is slow
+(the lag below) but absolute. So every measured yaw change turns the heading at once and the low-pass on
+the travel direction then only corrects the slow part. The travel direction itself is the chord's, the
+heading at the middle of the baseline; the measured turn over the chord's second half brings it to the
+newest time. In a steady turn the heading then has no lag at all (against ``omega (B / 2 + dt (1 - alpha)
+/ alpha)`` without), and neither a fold ambiguity nor a mounting offset reaches the estimate.
+
 Why not low-pass the velocity vector: through a U-turn its components reverse and a vector filter shrinks
 the speed by ``1 / sqrt(1 + (omega tau)^2)`` (``tau = 1 / (2 pi f_c)``, ``omega`` the turn rate) while the
 wrapped heading filter turns through 180 degrees with a constant lag and the speed stays whole. In a
@@ -72,6 +82,10 @@ class PlatformVelocityConfig:
     """Subtract the position noise's share of ``|v|^2`` (needs measurement covariances)."""
     use_measured_yaw: bool = False
     """Use the measured pad yaw, when a measurement has one, as the heading's input."""
+    measured_yaw_increments: bool = False
+    """Turn the heading at once by the change of the measured pad yaw between consecutive measurements
+    (modulo ``2 pi / yaw_fold``), the direction of travel still setting the heading's value (see the
+    module docstring). Exclusive with ``use_measured_yaw``."""
     yaw_fold: int = 1
     """Rotational symmetry of the measured yaw (it is known modulo ``2 pi / yaw_fold``)."""
 
@@ -92,6 +106,8 @@ class PlatformVelocityConfig:
             raise ValueError(f"heading_min_speed_mps must be >= 0, got {self.heading_min_speed_mps}")
         if int(self.yaw_fold) != self.yaw_fold or self.yaw_fold < 1:
             raise ValueError(f"yaw_fold must be a positive integer, got {self.yaw_fold}")
+        if self.use_measured_yaw and self.measured_yaw_increments:
+            raise ValueError("use_measured_yaw and measured_yaw_increments are exclusive: pick one")
 
 
 class PlatformVelocityEstimator:
@@ -105,14 +121,17 @@ class PlatformVelocityEstimator:
 
     def reset(self) -> None:
         """Forget everything."""
-        # recent positions: times, and (t, x, y, trace of the horizontal covariance or NaN)
+        # recent positions: times, and (t, x, y, trace of the horizontal covariance or NaN, yaw turned)
         self._bt: list[float] = []
-        self._buf: list[tuple[float, float, float, float]] = []
+        self._buf: list[tuple[float, float, float, float, float]] = []
         self._s2 = math.nan
         self._psi = math.nan
         self._t_speed = math.nan
         self._t_heading = math.nan
         self._t_last = math.nan
+        self._yaw_prev = math.nan
+        self._t_yaw_prev = math.nan
+        self._turned = 0.0  # sum of the measured yaw increments (rad)
         self.n_samples = 0
         """Raw velocities formed so far."""
 
@@ -136,6 +155,8 @@ class PlatformVelocityEstimator:
         c = self.config
         if yaw is not None and c.use_measured_yaw and math.isfinite(yaw):
             self._heading_input(t, float(yaw), measured=True)
+        if c.measured_yaw_increments:
+            self._turn_by_measured_yaw(t, yaw)
         bt, buf = self._bt, self._buf
         k0 = bisect.bisect_left(bt, t - c.max_baseline_s)
         if k0 > 0:
@@ -145,7 +166,7 @@ class PlatformVelocityEstimator:
         k = bisect.bisect_right(bt, t - c.min_baseline_s) - 1
         j = buf[k] if k >= 0 else None
         bt.append(t)
-        buf.append((t, x, y, tr))
+        buf.append((t, x, y, tr, self._turned))
         self._t_last = t
         if j is None:
             return False
@@ -162,8 +183,25 @@ class PlatformVelocityEstimator:
         self._t_speed = t
         self.n_samples += 1
         if not (c.use_measured_yaw and yaw is not None) and math.sqrt(v2) >= c.heading_min_speed_mps:
-            self._heading_input(t, math.atan2(vy, vx), measured=False)
+            # the chord points along the heading at the baseline's middle; with measured yaw increments
+            # the turn since then is known, and adding it removes the lag omega B / 2 as well
+            psi_travel = math.atan2(vy, vx) + 0.5 * (self._turned - j[4])
+            self._heading_input(t, psi_travel, measured=False)
         return True
+
+    def _turn_by_measured_yaw(self, t: float, yaw: float | None) -> None:
+        if yaw is None or not math.isfinite(yaw):
+            return
+        prev, t_prev = self._yaw_prev, self._t_yaw_prev
+        self._yaw_prev, self._t_yaw_prev = float(yaw), t
+        # an increment across a long gap could have wrapped past half the fold period: skip it
+        if math.isnan(prev) or t - t_prev > self.config.max_baseline_s:
+            return
+        period = 2.0 * math.pi / self.config.yaw_fold
+        turn = (yaw - prev + 0.5 * period) % period - 0.5 * period
+        self._turned += turn
+        if not math.isnan(self._psi):
+            self._psi = _wrap(self._psi + turn)
 
     def _heading_input(self, t: float, psi_in: float, measured: bool) -> None:
         if measured and self.config.yaw_fold > 1 and math.isfinite(self._psi):
