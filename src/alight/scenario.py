@@ -148,7 +148,12 @@ class SearchArea(_Strict):
 
 
 class MissionSpec(_Strict):
-    takeoff_altitude_m: PositiveFloat = 4.0
+    takeoff_altitude_m: PositiveFloat | None = None
+    """Height of the take-off climb over the take-off point (m); None: the exploration altitude. Climbing
+    straight up first gives the camera its widest footprint over the take-off point within seconds,
+    before the pattern leaves it: a moving platform crossing the area is most often near it early (the
+    zamanakos_sdu straight-line misses of a 4 m take-off were all platforms that passed there while the
+    vehicle was still low and flying its first leg the other way)."""
     explore_altitude_m: PositiveFloat = 12.0
     track_height_m: PositiveFloat = 2.5
     land_speed_mps: PositiveFloat | None = None

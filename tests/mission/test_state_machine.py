@@ -83,6 +83,16 @@ def test_takeoff_goes_straight_to_track_when_target_seen() -> None:
     assert m.step(1.0, ego(p=(0, 0, 4.1)), target(1.0), None).mode is Mode.TRACK
 
 
+def test_takeoff_tracks_a_target_seen_during_the_climb_once_above_the_tracking_height() -> None:
+    m = started()
+    below = ego(p=(0, 0, 0.1 + CFG.track_height_m - 0.1), v=(0, 0, 1.5))
+    assert m.step(0.5, below, target(0.5), None).mode is Mode.TAKEOFF
+    climbing = ego(p=(0, 0, 0.1 + CFG.track_height_m + 0.1), v=(0, 0, 1.5))
+    assert m.step(0.6, climbing, target(0.6, age=CFG.lost_timeout_s + 0.1), None).mode is Mode.TAKEOFF
+    status = m.step(0.7, climbing, target(0.7), None)
+    assert status.mode is Mode.TRACK and status.reason == "target seen above the tracking height"
+
+
 def test_explore_to_track_on_detection_only_when_fresh() -> None:
     m = at_mode(Mode.EXPLORE)
     assert m.step(2.0, ego(p=(0, 0, 8)), target(2.0, age=CFG.lost_timeout_s + 1), None).mode is Mode.EXPLORE
@@ -167,6 +177,7 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_idle_to_takeoff_records_the_takeoff_point,
         test_takeoff_waits_for_the_hover_point,
         test_takeoff_goes_straight_to_track_when_target_seen,
+        test_takeoff_tracks_a_target_seen_during_the_climb_once_above_the_tracking_height,
         test_explore_to_track_on_detection_only_when_fresh,
         test_track_to_land_needs_position_velocity_and_dwell,
         test_track_to_explore_when_lost,

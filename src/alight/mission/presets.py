@@ -31,6 +31,7 @@ from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosDetector, Qo
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
+from alight.estimation.platform_velocity import PlatformVelocityConfig
 from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
@@ -81,7 +82,7 @@ class Preset:
 def _mission_config(s: object, land_speed_mps: float = 0.4) -> MissionConfig:
     m = s.mission  # type: ignore[attr-defined]
     return MissionConfig(
-        takeoff_altitude_m=m.takeoff_altitude_m,
+        takeoff_altitude_m=m.explore_altitude_m if m.takeoff_altitude_m is None else m.takeoff_altitude_m,
         explore_altitude_m=m.explore_altitude_m,
         track_height_m=m.track_height_m,
         land_speed_mps=land_speed_mps if m.land_speed_mps is None else m.land_speed_mps,
@@ -230,7 +231,14 @@ def build_zamanakos_sdu(s: object, airframe: Airframe, rng: np.random.Generator)
         # The deck's height above the ground is known to the operator of the vehicle that carries it; the
         # paper intersects with the ground (z = 0), which biases every fix radially by d * h_deck / h.
         geolocator=HomographyGeolocator(camera, mount, plane_z_W=s.platform.pad_height_m),  # type: ignore[attr-defined]
-        platform_estimator=SduKalmanFilter(SduKfConfig()),
+        # "the moving platform's yaw orientation will be taken into account" (Sec. IV-B): the marker's
+        # yaw changes turn the velocity's heading at once (known modulo the n-fold order when the ArUco
+        # markers are out of view, hence increments, not values)
+        platform_estimator=SduKalmanFilter(
+            SduKfConfig(
+                velocity=PlatformVelocityConfig(measured_yaw_increments=True, yaw_fold=pad.nfold_order)
+            )
+        ),
         mission=mission,
         guidance=guidance,
         controller=controller,

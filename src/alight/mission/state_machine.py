@@ -93,6 +93,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.IDLE, Mode.TAKEOFF, "mission started"),
     (Mode.TAKEOFF, Mode.EXPLORE, "hover reached, no target yet"),
     (Mode.TAKEOFF, Mode.TRACK, "hover reached, target already seen"),
+    (Mode.TAKEOFF, Mode.TRACK, "target seen above the tracking height"),
     (Mode.EXPLORE, Mode.TRACK, "target detected"),
     (Mode.TRACK, Mode.LAND, "above the platform with matched velocity"),
     (Mode.TRACK, Mode.EXPLORE, "target lost"),
@@ -174,7 +175,11 @@ class Mission:
             # the take-off point) is the position loop's to remove, not a reason to stay in take-off.
             offset = abs(float(ego.p_WB[2] - self.hover_point_W()[2]))
             speed = float(np.linalg.norm(ego.v_WB))
-            if offset < cfg.hover_tolerance_m and speed < cfg.hover_speed_tolerance_mps:
+            height = float(ego.p_WB[2] - self.takeoff_point_W[2])
+            if target is not None and age < cfg.lost_timeout_s and height >= cfg.track_height_m:
+                # a platform seen during the climb is followed at once: it moves on while we climb
+                self._go(t, Mode.TRACK, "target seen above the tracking height")
+            elif offset < cfg.hover_tolerance_m and speed < cfg.hover_speed_tolerance_mps:
                 if target is not None and age < cfg.lost_timeout_s:
                     self._go(t, Mode.TRACK, "hover reached, target already seen")
                 else:
