@@ -86,6 +86,7 @@ from alight.estimation.sigma_points import (
     SigmaPointScheme,
     SimplexSigmaPoints,
 )
+from alight.estimation.turn_rate import TurnRateConfig, TurnRateTracker, turn_predict
 from alight.estimation.ukf import (
     COVARIANCE_UPDATES,
     GATED,
@@ -803,6 +804,11 @@ class KimUkfConfig:
     A red object that passes the detector's checks on a frame or two then never steers the vehicle."""
     confirm_window_s: float = 0.5
     """Longest gap between the updates that confirm a track (s)."""
+    turn_model: bool = True
+    """Extrapolate ``state`` and ``predict_ahead`` along the platform's turn (the turn rate of the estimated
+    velocity's heading, :mod:`alight.estimation.turn_rate`; ours). False: constant velocity, eq. 10."""
+    turn: TurnRateConfig = field(default_factory=TurnRateConfig)
+    """The turn-rate tracker's parameters."""
     sigma_points: str = "merwe"
     """Sigma-point scheme: ``merwe`` (scaled, 2n+1), ``cubature`` (2n) or ``simplex`` (n+2)."""
     alpha: float = 1.0
@@ -908,12 +914,14 @@ class KimUkf:
             Wm, Wc = self.scheme.weights(N_STATE)
             self._Wm, self._Wc = np.array(Wm, dtype=np.float64), np.array(Wc, dtype=np.float64)
         self._info = np.zeros(1)
+        self.turn_rate = TurnRateTracker(self.config.turn)
         self.reset()
 
     # ---- lifecycle --------------------------------------------------------------------------------
 
     def reset(self) -> None:
         """Forget everything."""
+        self.turn_rate.reset()
         self._x = np.zeros(N_STATE)
         self._P = np.eye(N_STATE)
         self._has = False
@@ -969,6 +977,8 @@ class KimUkf:
         self._has = True
         self._consecutive_rejections = 0
         self._confirmed_n += 1
+        if self.config.turn_model:
+            self.turn_rate.update(t, float(v_new[0] + x[2]), float(v_new[1] + x[3]))
 
     def _rejected(self, res: UpdateResult) -> bool:
         """Book-keeping of a refused update; True when the track should restart."""
@@ -1029,6 +1039,7 @@ class KimUkf:
         P[4:7, 4:7] = np.eye(3) * max(c.attitude_std, _MIN_ATT_STD) ** 2
         self._z = float(p[2])
         self._z_var = float(cov[2, 2]) if cov[2, 2] > 0 else 1e-12
+        self.turn_rate.reset()  # a new track
         self._commit(t, x, P, p_a, v_a)
 
     def _z_predict_update(self, dt: float, z: float, var: float) -> None:
@@ -1217,6 +1228,7 @@ class KimUkf:
         P[np.ix_(idx, idx)] = cov
         x[2:4] = -v_WC[:2]
         P[2, 2] = P[3, 3] = c.init_speed_std**2
+        self.turn_rate.reset()  # a new track
         self._commit(t, x, P, p_WC, v_WC)
         self._rho_prev = self._rho(px)
         self._z = c.deck_height
@@ -1304,27 +1316,35 @@ class KimUkf:
         return p, v, cov
 
     def state(self, t: float) -> PlatformEstimate:
-        """The platform at ``t`` (s) in W, extrapolated at constant velocity from the last measurement."""
+        """The platform at ``t`` (s) in W, extrapolated from the last measurement along its turn
+        (``turn_model``) or at constant velocity."""
         p, v, cov = self._world(t)
-        z = np.zeros(3)
+        a = np.zeros(3)
+        if self.config.turn_model and self.turn_rate.rate != 0.0:
+            p_f, v_f, _ = self._world(self._t)
+            pk, vk, ak, _ = turn_predict(p_f, v_f, self.turn_rate.rate, np.array([t - self._t]))
+            p, v, a = pk[0], vk[0], ak[0]
         return PlatformEstimate(
             t=t,
             p_WP=p,
             v_WP=v,
-            a_WP=z,
+            a_WP=a,
             yaw=math.atan2(v[1], v[0]),
             cov_p_WP=cov,
             t_last_measurement=self._t,
         )
 
     def predict_ahead(self, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Positions (k, 3), velocities (k, 3), accelerations (k, 3, zero) and headings (k,) at the
-        absolute ``times`` (k,) (s), constant velocity from the last measurement."""
+        """Positions (k, 3), velocities (k, 3), accelerations (k, 3) and headings (k,) at the absolute
+        ``times`` (k,) (s) from the last measurement: along the platform's turn (``turn_model``), else at
+        constant velocity (zero acceleration)."""
         ts = np.asarray(times, dtype=np.float64)
         if ts.ndim != 1:
             raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
         p0, v, _ = self._world(self._t)
         k = ts.shape[0]
+        if self.config.turn_model and self.turn_rate.rate != 0.0:
+            return turn_predict(p0, v, self.turn_rate.rate, ts - self._t)
         p = p0 + (ts - self._t)[:, None] * v
         return p, np.tile(v, (k, 1)), np.zeros((k, 3)), np.full(k, math.atan2(v[1], v[0]))
 

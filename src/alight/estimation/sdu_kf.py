@@ -42,7 +42,8 @@ with the ego pose at the capture time ``t_c``); the relative observation is
 ``x_obs = p_WB(t_c) - p_WP`` with ``p_WB(t_c)`` interpolated from the ego samples the filter was given, so
 the ego position cancels as it does in the paper's camera-relative measurement. Outputs go back to W with
 the ego position at the filter's time: ``p_WP = p_WB(t_f) - x``; the velocity is the velocity estimator's,
-the heading its heading; ``predict_ahead`` is constant velocity (the paper's platform model). Position
+the heading its heading; ``state`` and ``predict_ahead`` extrapolate along the platform's turn
+(``turn_model``, :mod:`alight.estimation.turn_rate`; the paper's constant velocity with it off). Position
 covariance ``P + |t - t_f| sigma_IMU^2 I`` horizontally (the ego position is taken as known: relative
 guidance does not need it).
 
@@ -70,6 +71,7 @@ import numpy as np
 
 from alight.errors import EstimationError
 from alight.estimation.platform_velocity import PlatformVelocityConfig, PlatformVelocityEstimator
+from alight.estimation.turn_rate import TurnRateConfig, TurnRateTracker, turn_predict
 from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
 
 
@@ -101,6 +103,12 @@ class SduKfConfig:
     """How far back the ego samples are kept (s): the longest usable detection delay."""
     velocity: PlatformVelocityConfig = field(default_factory=PlatformVelocityConfig)
     """The platform velocity estimator's parameters."""
+    turn_model: bool = True
+    """Extrapolate ``state`` and ``predict_ahead`` along the platform's turn (the turn rate of the
+    velocity estimator's heading, :mod:`alight.estimation.turn_rate`; our extension). False: constant
+    velocity, the paper's model."""
+    turn: TurnRateConfig = field(default_factory=TurnRateConfig)
+    """The turn-rate tracker's parameters."""
 
     def __post_init__(self) -> None:
         for name in ("sigma_imu_mps", "sigma_obs_m", "p0_m2", "history_s"):
@@ -121,6 +129,7 @@ class SduKalmanFilter:
     def __init__(self, config: SduKfConfig | None = None) -> None:
         self.config = config if config is not None else SduKfConfig()
         self.velocity_estimator = PlatformVelocityEstimator(self.config.velocity)
+        self.turn_rate = TurnRateTracker(self.config.turn)
         self.reset()
 
     # ---- lifecycle --------------------------------------------------------------------------------
@@ -128,6 +137,7 @@ class SduKalmanFilter:
     def reset(self) -> None:
         """Forget everything."""
         self.velocity_estimator.reset()
+        self.turn_rate.reset()
         self._x0 = self._x1 = 0.0
         # P at the capture time of the last measurement (t_cap); at the filter's time it is
         # P + (t_f - t_cap) sigma_IMU^2 I, as eq. (1) adds Q = dt sigma_IMU^2 I with F = I
@@ -296,6 +306,8 @@ class SduKalmanFilter:
             self.n_too_old += 1
             return False
         self.velocity_estimator.update(t_c, measurement.p_WP, cov, measurement.yaw)
+        if c.turn_model and self.velocity_estimator.initialized:
+            self.turn_rate.update(t_c, *self.velocity_estimator.velocity_xy())
         pb = self._ego_position(t_c)
         zx, zy = pb[0] - p[0], pb[1] - p[1]  # x_obs: the UAV relative to the pad at t_c
         dt_obs = (self._tf - t_c) if c.delay_s is None else c.delay_s
@@ -410,19 +422,30 @@ class SduKalmanFilter:
         cov = np.array(
             [[self._p00 + q, self._p01, 0.0], [self._p01, self._p11 + q, 0.0], [0.0, 0.0, self._var_z]]
         )
+        if self.config.turn_model and self.turn_rate.rate != 0.0:
+            pk, vk, ak, _ = turn_predict(
+                np.array([px, py, self._z]), np.array([mx, my, 0.0]), self.turn_rate.rate, np.array([tau])
+            )
+            p_WP, v_WP, a_WP = pk[0], vk[0], ak[0]
+            yaw = math.remainder(self.velocity_estimator.heading + self.turn_rate.rate * tau, 2.0 * math.pi)
+        else:
+            p_WP = np.array([px + mx * tau, py + my * tau, self._z])
+            v_WP, a_WP = np.array([mx, my, 0.0]), np.zeros(3)
+            yaw = self.velocity_estimator.heading
         return PlatformEstimate(
             t=t,
-            p_WP=np.array([px + mx * tau, py + my * tau, self._z]),
-            v_WP=np.array([mx, my, 0.0]),
-            a_WP=np.zeros(3),
-            yaw=self.velocity_estimator.heading,
+            p_WP=p_WP,
+            v_WP=v_WP,
+            a_WP=a_WP,
+            yaw=yaw,
             cov_p_WP=cov,
             t_last_measurement=self._t_meas,
         )
 
     def predict_ahead(self, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Positions (k, 3) m, velocities (k, 3) m/s, accelerations (k, 3) (zero) and headings (k,) rad at
-        the absolute ``times`` (k,) (s): constant platform velocity from the filter's time."""
+        """Positions (k, 3) m, velocities (k, 3) m/s, accelerations (k, 3) m/s^2 and headings (k,) rad at
+        the absolute ``times`` (k,) (s): from the filter's time along the platform's turn (``turn_model``),
+        else at constant velocity (zero acceleration)."""
         ts = np.asarray(times, dtype=np.float64)
         if ts.ndim != 1:
             raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
@@ -432,6 +455,15 @@ class SduKalmanFilter:
         mx, my = self._u[4], self._u[5]
         k = ts.shape[0]
         tau = ts - self._tf
+        if self.config.turn_model and self.turn_rate.rate != 0.0:
+            p, v, a, _ = turn_predict(
+                np.array([px, py, self._z]), np.array([mx, my, 0.0]), self.turn_rate.rate, tau
+            )
+            yaws = [
+                math.remainder(self.velocity_estimator.heading + self.turn_rate.rate * d, 2.0 * math.pi)
+                for d in tau.tolist()
+            ]
+            return p, v, a, np.array(yaws)
         p = np.empty((k, 3))
         p[:, 0] = px + mx * tau
         p[:, 1] = py + my * tau
