@@ -1296,7 +1296,8 @@ class KimUkf:
         """Camera position and velocity in W at ``t_filter`` that the relative state refers to."""
         return self._p_a.copy(), self._v_a.copy()
 
-    def _world(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def _world_pv(self, t: float) -> tuple[FloatArray, FloatArray]:
+        """Position and velocity in W at ``t``, constant velocity from the filter's time."""
         if not self._has:
             raise EstimationError("KimUkf: no measurement yet")
         if not math.isfinite(t):
@@ -1307,6 +1308,11 @@ class KimUkf:
         p = np.empty(3)
         p[:2] = self._p_a[:2] + self._x[0:2] + dt * v[:2]
         p[2] = self._z
+        return p, v
+
+    def _world(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        p, v = self._world_pv(t)
+        dt = t - self._t
         F = np.eye(4)
         F[0, 2] = F[1, 3] = dt
         P4 = F @ self._P[0:4, 0:4] @ F.T + kim_process_noise(dt, self.config.accel_noise, 0.0)[0:4, 0:4]
@@ -1321,7 +1327,7 @@ class KimUkf:
         p, v, cov = self._world(t)
         a = np.zeros(3)
         if self.config.turn_model and self.turn_rate.rate != 0.0:
-            p_f, v_f, _ = self._world(self._t)
+            p_f, v_f = self._world_pv(self._t)
             pk, vk, ak, _ = turn_predict(p_f, v_f, self.turn_rate.rate, np.array([t - self._t]))
             p, v, a = pk[0], vk[0], ak[0]
         return PlatformEstimate(
@@ -1341,7 +1347,7 @@ class KimUkf:
         ts = np.asarray(times, dtype=np.float64)
         if ts.ndim != 1:
             raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
-        p0, v, _ = self._world(self._t)
+        p0, v = self._world_pv(self._t)
         k = ts.shape[0]
         if self.config.turn_model and self.turn_rate.rate != 0.0:
             return turn_predict(p0, v, self.turn_rate.rate, ts - self._t)

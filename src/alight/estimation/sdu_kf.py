@@ -459,11 +459,8 @@ class SduKalmanFilter:
             p, v, a, _ = turn_predict(
                 np.array([px, py, self._z]), np.array([mx, my, 0.0]), self.turn_rate.rate, tau
             )
-            yaws = [
-                math.remainder(self.velocity_estimator.heading + self.turn_rate.rate * d, 2.0 * math.pi)
-                for d in tau.tolist()
-            ]
-            return p, v, a, np.array(yaws)
+            yaw = self.velocity_estimator.heading + self.turn_rate.rate * tau
+            return p, v, a, np.remainder(yaw + math.pi, 2.0 * math.pi) - math.pi
         p = np.empty((k, 3))
         p[:, 0] = px + mx * tau
         p[:, 1] = py + my * tau
