@@ -70,7 +70,10 @@ def _frozen_any(a: object, ndim: int, name: str) -> FloatArray:
 
 def quat_to_rotmat(q_xyzw: FloatArray) -> FloatArray:
     """Rotation matrix of a unit quaternion ``(x, y, z, w)`` (normalised here)."""
-    x, y, z, w = q_xyzw / math.sqrt(float(np.dot(q_xyzw, q_xyzw)))
+    # on Python floats: for one (4,) quaternion that is ~3x faster than the same arithmetic on arrays
+    x, y, z, w = q_xyzw.tolist() if isinstance(q_xyzw, np.ndarray) else (float(c) for c in q_xyzw)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -297,6 +300,30 @@ class PlatformEstimate:
         object.__setattr__(self, "v_WP", _frozen(self.v_WP, (3,), "v_WP"))
         object.__setattr__(self, "a_WP", _frozen(self.a_WP, (3,), "a_WP"))
         object.__setattr__(self, "cov_p_WP", _frozen(self.cov_p_WP, (3, 3), "cov_p_WP"))
+
+    @classmethod
+    def trusted(
+        cls,
+        t: float,
+        p_WP: FloatArray,
+        v_WP: FloatArray,
+        a_WP: FloatArray,
+        yaw: float,
+        cov_p_WP: FloatArray,
+        t_last_measurement: float,
+    ) -> PlatformEstimate:
+        """Construct without validation, for estimators that pass float64 arrays of the right shapes which
+        they own and never write again (queried at the planner's and the logger's rates). The arrays are
+        made read-only, not copied."""
+        self = object.__new__(cls)
+        setattr_ = object.__setattr__
+        setattr_(self, "t", float(t))
+        for name, arr in (("p_WP", p_WP), ("v_WP", v_WP), ("a_WP", a_WP), ("cov_p_WP", cov_p_WP)):
+            arr.flags.writeable = False
+            setattr_(self, name, arr)
+        setattr_(self, "yaw", float(yaw))
+        setattr_(self, "t_last_measurement", float(t_last_measurement))
+        return self
 
 
 @dataclass(frozen=True, slots=True)

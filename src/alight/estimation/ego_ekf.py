@@ -897,7 +897,10 @@ class EgoEkf:
             if cov_v is not None and m == 9:
                 Rm[6:9, 6:9] = _cov3(cov_v, "cov_v")
         # checked here, before any propagation, so that a bad message leaves the filter untouched
-        if not (math.isfinite(float(self._z[: m + 1].sum())) and math.isfinite(float(Rm.sum()))):
+        if not (
+            math.isfinite(sum(self._z[: m + 1].tolist()))
+            and (Rm is self._R9 or Rm is self._R6 or math.isfinite(float(Rm.sum())))  # configured: checked
+        ):
             raise EstimationError(f"EgoEkf.update_odometry: non-finite measurement or covariance at t={t}")
         lag = self._t - t
         if lag > self.config.max_odometry_lag:

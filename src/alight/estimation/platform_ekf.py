@@ -796,14 +796,9 @@ class PlatformEkf:
             )
         x, P = self.propagated(t)
         p, v, a, yaw = self._ahead(x, np.zeros(1))
-        return PlatformEstimate(
-            t=t,
-            p_WP=p[0],
-            v_WP=v[0],
-            a_WP=a[0],
-            yaw=float(yaw[0]),
-            cov_p_WP=P[0:3, 0:3],
-            t_last_measurement=self._t,
+        # fresh arrays of this call, owned by nobody else: no copies needed
+        return PlatformEstimate.trusted(
+            t, p[0].copy(), v[0].copy(), a[0].copy(), float(yaw[0]), P[0:3, 0:3].copy(), self._t
         )
 
     @staticmethod

@@ -52,6 +52,7 @@ class EgoHistory:
         self.q = np.zeros((capacity, 4))
         self.q[:, 3] = 1.0
         self.v = np.zeros((capacity, 3))
+        self._all = np.arange(capacity)
         self._i = 0
         self._n = 0
 
@@ -68,19 +69,26 @@ class EgoHistory:
         pose = self.pose_at(t)
         if pose is None:
             return None
-        order = np.argsort(self.t)[-self._n :]
+        order = self._order()
         ts = self.t[order]
         v = np.array([np.interp(t, ts, self.v[order, k]) for k in range(3)])
         return CapturePose(pose[0], pose[1], v)
+
+    def _order(self) -> FloatArray:
+        """Indices of the stored samples, oldest first: the ring is written in time order, so this is a
+        rotation (an argsort here cost more than the interpolation)."""
+        size = self.t.size
+        return (
+            (np.arange(self._i - self._n, self._i) % size) if self._n < size else np.roll(self._all, -self._i)
+        )
 
     def pose_at(self, t: float) -> tuple[FloatArray, FloatArray] | None:
         """(p_WB, R_WB) at time t, or None when t is outside the stored span by more than 50 ms."""
         if self._n == 0:
             return None
-        order = np.argsort(self.t)
-        ts = self.t[order][-self._n :]
+        idx = self._order()
+        ts = self.t[idx]
         k = int(np.searchsorted(ts, t))
-        idx = order[-self._n :]
         if k == 0:
             if ts[0] - t > 0.05:
                 return None
