@@ -169,6 +169,11 @@ class MissionSpec(_Strict):
     search_pattern: Literal["spiral", "lawnmower"] = "spiral"
     """Coverage of the search area: an outward square spiral from the take-off point, or paper 000's
     generic waypoint coverage as a lawnmower from the nearest corner."""
+    aim_camera: bool = True
+    """In take-off and exploration, move the reference upwind so that the body-fixed downward camera, not
+    the body, follows it: holding position in a side wind tilts the vehicle and its view moves
+    ``h tan(tilt)`` downwind (mission/README.md has the measurements). False flies the body on the
+    pattern, as papers 000 and 004 do."""
 
 
 class PlannerSpec(_Strict):

@@ -227,3 +227,16 @@ def test_examples_expand() -> None:
     assert gusts == [3.45, 7.76]
     assert all(math.isclose(m.scenario["perception"]["rate_hz"], 20.0) for m in paper.missions)
     assert len(paper.missions) == len(conds) * 4 * 20
+
+
+def test_the_sdu_conditions_fly_the_12_mps_gust_force() -> None:
+    # Issue 6's table is calm against paper 004's 12 m/s gusts: 7.76 N as the model's power_init, not the
+    # 7.0 N default of the model (an earlier version of the file flew 7.0 N while calling it 12 m/s).
+    sdu = load_campaign(ROOT / "examples" / "campaigns" / "zamanakos_sdu_conditions.yaml")
+    assert sdu.spec.seeds_per_condition == 20 and sdu.presets == ["zamanakos_sdu"]
+    winds = {(m.scenario["platform"]["path"], m.scenario["wind"]["model"]) for m in sdu.missions}
+    assert winds == {("straight", "none"), ("straight", "gust"), ("tractor", "none"), ("tractor", "gust")}
+    gusty = [m for m in sdu.missions if m.scenario["wind"]["model"] == "gust"]
+    assert len(gusty) == 40
+    assert all(math.isclose(m.scenario["wind"]["gust_power_N"], 7.76) for m in gusty)
+    assert all(math.isclose(m.scenario["platform"]["speed_mps"], 1.5) for m in sdu.missions)

@@ -17,6 +17,7 @@ from alight.energy.qos import (
     DEFAULT_PHASE_POLICY,
     FRAME_KINDS,
     LAND_SETTING,
+    OBLIQUE_SEARCH_SETTING,
     PhasePolicy,
     QosDetector,
     QosEnergyModel,
@@ -415,3 +416,52 @@ def test_shipped_model_is_well_formed_and_covers_the_default_policy() -> None:
             low, high = QosSetting(5, 1.0, 41), QosSetting(30, 1.0, 41)
             assert model.energy_per_s(high) == pytest.approx(6 * model.energy_per_s(low), rel=1e-9)
     assert math.isfinite(QosEnergyModel.load().energy_per_frame_J(LAND_SETTING))
+
+
+def test_oblique_views_switch_the_search_to_its_oblique_setting(frames: list[Frame]) -> None:
+    img = frames[0].image
+    cheap, oblique, land = QosSetting(5, 0.5, 21), QosSetting(20, 1.0, 41), QosSetting(30, 1.0, 21)
+    pol = PhasePolicy(
+        {Mode.EXPLORE: cheap, Mode.LAND: land}, cheap, oblique={Mode.EXPLORE: oblique}, oblique_tilt_rad=0.35
+    )
+    assert pol.setting_for(Mode.EXPLORE, oblique=True) == oblique
+    assert pol.setting_for(Mode.LAND, oblique=True) == land  # no oblique entry: the usual setting
+    assert set(pol.all_settings()) == {cheap, oblique, land} and pol.all_settings()[0] == cheap
+    det = QosDetector(_sdu(), pol, throttle=False)
+    det.set_mode(Mode.EXPLORE)
+    tilt = 0.0
+    t = 0.0
+    for t in np.arange(0.0, 2.0, 0.02):  # level: cheap
+        det.set_view_tilt(float(t), tilt)
+    assert det.setting == cheap and not det.oblique
+    # a brief lean (a pattern corner) is low-passed away
+    for t in np.arange(2.0, 2.3, 0.02):
+        det.set_view_tilt(float(t), 0.6)
+    assert det.setting == cheap
+    # a sustained lean into the wind switches within a couple of seconds...
+    for t in np.arange(2.3, 6.0, 0.02):
+        det.set_view_tilt(float(t), 0.6)
+    assert det.setting == oblique and det.oblique
+    det.detect(img, 6.0)
+    assert det.frames_by_setting == {oblique: 1}
+    # ... holds it in the hysteresis band (5 deg under the threshold) ...
+    for t in np.arange(6.0, 12.0, 0.02):
+        det.set_view_tilt(float(t), 0.35 - math.radians(3.0))
+    assert det.setting == oblique
+    # ... leaves it below, and a mode without an oblique entry ignores the tilt
+    for t in np.arange(12.0, 20.0, 0.02):
+        det.set_view_tilt(float(t), 0.1)
+    assert det.setting == cheap and not det.oblique
+    det.set_mode(Mode.LAND)
+    for t in np.arange(20.0, 26.0, 0.02):
+        det.set_view_tilt(float(t), 0.6)
+    assert det.setting == land
+    det.set_view_tilt(26.0, float("nan"))  # ignored
+    assert det.setting == land
+    with pytest.raises(ValueError, match="oblique_tilt_rad"):
+        PhasePolicy({}, cheap, oblique_tilt_rad=2.0)
+    with pytest.raises(ValueError, match="oblique setting"):
+        PhasePolicy({}, cheap, oblique={Mode.EXPLORE: (20, 1.0, 41)})  # type: ignore[dict-item]
+    # the default rule searches at full quality only when leaning
+    assert DEFAULT_PHASE_POLICY.setting_for(Mode.EXPLORE, oblique=True) == OBLIQUE_SEARCH_SETTING
+    assert DEFAULT_PHASE_POLICY.setting_for(Mode.EXPLORE) < OBLIQUE_SEARCH_SETTING

@@ -9,6 +9,12 @@
 - go-around: keep matching the platform while climbing back to the tracking height;
 - abort: hold the horizontal position at the exploration altitude.
 
+In take-off and exploration the camera, not the body, follows the reference ("aiming"): a vehicle holding
+its position against a steady side force (wind) tilts into it, and its body-fixed downward camera then
+looks ``h tan(tilt)`` downwind; at 12 m in paper 004's 12 m/s gusts that is ~8 m, and a platform passing
+just upwind of the take-off point is never in view. The reference is shifted upwind by that much, with
+the tilt low-passed and the part of it that the reference's own acceleration asks for taken out.
+
 Replanning (``update``) and sampling (``reference``) are separate so that the planner can run at 50 Hz
 while the controller samples the current plan at its own rate.
 """
@@ -38,6 +44,8 @@ if TYPE_CHECKING:
 
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
+_GRAVITY = 9.81
+_AIMED_MODES = (Mode.TAKEOFF, Mode.EXPLORE)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,6 +72,20 @@ class GuidanceConfig:
     (a moving platform that was not found has most likely driven out of the area)."""
     search_growth_m: float = 20.0
     """Each expansion grows the searched area by this much on every side (m)."""
+    aim_camera: bool = True
+    """Shift the take-off and exploration references upwind so that the downward camera's optical axis,
+    not the body, follows them (see the module docstring)."""
+    aim_time_constant_s: float = 1.5
+    """Low-pass time constant of the tilt that sets the aiming offset (s): long enough to average out the
+    vehicle's own manoeuvres, short enough to follow paper 004's 5.5 s gust steps."""
+    aim_max_tan_tilt: float = 1.0
+    """Largest tilt tangent the aiming offset uses (45 deg)."""
+
+    def __post_init__(self) -> None:
+        if not (self.aim_time_constant_s > 0.0 and math.isfinite(self.aim_time_constant_s)):
+            raise ValueError(f"aim_time_constant_s must be positive, got {self.aim_time_constant_s}")
+        if not (self.aim_max_tan_tilt >= 0.0 and math.isfinite(self.aim_max_tan_tilt)):
+            raise ValueError(f"aim_max_tan_tilt must be >= 0, got {self.aim_max_tan_tilt}")
 
 
 def _rest_to_rest(
@@ -108,7 +130,49 @@ class Guidance:
         self._mode_t0 = 0.0
         self._z_entry = 0.0
         self._last_ref: Reference | None = None
+        self._tilt_tan_lp = (0.0, 0.0)
+        self._v_aim: tuple[float, float, float, float] | None = None
+        self._aim_W = np.zeros(3)
         self.plans_adopted = 0
+
+    @property
+    def aim_offset_W(self) -> FloatArray:
+        """Current aiming offset added to the take-off and exploration references (m), shape (3,)."""
+        return self._aim_W.copy()
+
+    def _update_aim(self, t: float, mode: Mode, ego: EgoState) -> None:
+        """Low-pass the side force per unit mass and set the aiming offset from it. Only the aimed modes
+        update it (it runs at the planner's rate, on scalars: this is in the simulator's hot loop); after
+        a spell in another mode the filter restarts from its last value.
+
+        The force is what the tilt does not spend on the vehicle's own acceleration, measured (the
+        difference of the estimated velocity), not the reference's: the position loop's corrections tilt
+        the vehicle too, and reading those as wind would move the reference further the same way, a
+        loop that diverges (a 4 m/s pattern flown at 12 m/s)."""
+        if not self.config.aim_camera or mode not in _AIMED_MODES:
+            return
+        x, y, z, w = ego.q_WB.tolist()
+        zb_x, zb_y, zb_z = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
+        vx, vy, vz = ego.v_WB.tolist()
+        prev, self._v_aim = self._v_aim, (t, vx, vy, vz)
+        if not zb_z > 0.2 or prev is None or not 0.0 < t - prev[0] <= 0.5:
+            return  # upside down, not finite, or no recent velocity to difference: keep the offset
+        dt = t - prev[0]
+        ax, ay, az = (vx - prev[1]) / dt, (vy - prev[2]) / dt, (vz - prev[3]) / dt
+        # The thrust direction is (a - f/m + g e3) / |.|, so the side force per unit mass over g is
+        # tan(tilt) (1 + a_z / g) - a_xy / g.
+        scale = (1.0 + az / _GRAVITY) / zb_z
+        dx, dy = zb_x * scale - ax / _GRAVITY, zb_y * scale - ay / _GRAVITY
+        gain = dt / (self.config.aim_time_constant_s + dt)
+        lx, ly = self._tilt_tan_lp
+        lx, ly = lx + gain * (dx - lx), ly + gain * (dy - ly)
+        if not (math.isfinite(lx) and math.isfinite(ly)):
+            return
+        self._tilt_tan_lp = (lx, ly)
+        norm = math.hypot(lx, ly)
+        cap = self.config.aim_max_tan_tilt
+        k = max(float(ego.p_WB[2]), 0.0) * (cap / norm if norm > cap else 1.0)
+        self._aim_W = np.array([k * lx, k * ly, 0.0])
 
     # ------------------------------------------------------------------------------------------------
     def update(
@@ -121,6 +185,7 @@ class Guidance:
         hover_point_W: FloatArray,
     ) -> None:
         """Replan for ``mode`` at time ``t`` (called at the planner's rate)."""
+        self._update_aim(t, mode, ego)
         entered = mode is not self._mode
         if entered:
             self._enter(t, mode, ego, hover_point_W)
@@ -139,13 +204,15 @@ class Guidance:
         # far from it (after a mode change or a disturbance): then restart from the estimate. Sampling at
         # t matters: restarting from the last command's reference (up to one control period old) would
         # set the plan back by v * period at every replanning and make it trail the platform.
+        # What is returned is the state flown, the aiming offset included.
         ref: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        aimed = self._aim_W if self._mode in _AIMED_MODES else _ZERO3
         if self._traj is not None:
             p_t, v_t, a_t, _ = self._traj.sample(t)
-            ref = (p_t, v_t, a_t)
+            ref = (p_t + aimed, v_t, a_t)
         elif self._route is not None:
             p_t, v_t, a_t, _ = self._route.reference(t)
-            ref = (p_t, v_t, a_t)
+            ref = (p_t + aimed, v_t, a_t)
         elif self._last_ref is not None:
             ref = (self._last_ref.p, self._last_ref.v, self._last_ref.a)
         if ref is not None:
@@ -160,9 +227,11 @@ class Guidance:
         p0, v0, _ = self._start_state(t, ego)  # from the previous mode's reference
         self._mode, self._mode_t0, self._z_entry = mode, t, float(ego.p_WB[2])
         self._traj, self._route = None, None
+        if mode in _AIMED_MODES:
+            p0 = p0 - self._aim_W  # the aimed references are flown with the offset added
         if mode is Mode.TAKEOFF:
             self._traj = _rest_to_rest(
-                t, ego.p_WB, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2
+                t, ego.p_WB - self._aim_W, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2
             )
         elif mode is Mode.EXPLORE:
             self._expansions = 0
@@ -197,7 +266,9 @@ class Guidance:
             mcfg.explore_altitude_m, spacing,
         )  # fmt: skip
         p0, v0, _ = self._start_state(t, ego)
-        self._route = ExplorationRoute(waypoints, t0=t, p0=p0, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps)
+        self._route = ExplorationRoute(
+            waypoints, t0=t, p0=p0 - self._aim_W, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps
+        )
 
     def _track_height(self, t: float, ego: EgoState, target: PlatformEstimate, initialized: bool) -> float:
         """Height above the pad to track at (m).
@@ -265,9 +336,14 @@ class Guidance:
             pvaj[3] = _platform_jerk(target)
             ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
         elif self._route is not None and mode is Mode.EXPLORE:
-            ref = Reference.from_packed(t, self._route.reference_packed(t), cfg.yaw, 0.0)
+            pvaj = self._route.reference_packed(t)  # a new array
+            pvaj[0] += self._aim_W
+            ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
         elif self._traj is not None:
-            ref = Reference.from_packed(t, self._traj.sample_packed(t), cfg.yaw, 0.0)
+            pvaj = self._traj.sample_packed(t)  # a new array
+            if mode is Mode.TAKEOFF:
+                pvaj[0] += self._aim_W
+            ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
         elif self._last_ref is not None:
             r = self._last_ref
             ref = Reference.trusted(t, r.p, _ZERO3, _ZERO3, _ZERO3, cfg.yaw, 0.0)

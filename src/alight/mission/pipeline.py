@@ -157,6 +157,7 @@ class Pipeline:
         self._predict_pixel = getattr(platform_estimator, "predict_pixel", None)
         self._set_prediction = getattr(detector, "set_prediction", None)
         self._set_mode = getattr(detector, "set_mode", None)
+        self._set_view_tilt = getattr(detector, "set_view_tilt", None)
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -292,6 +293,9 @@ class Pipeline:
         self.status = self.mission.step(t, ego, target, self.range_m)
         if self.status.changed and self._set_mode is not None:
             self._set_mode(self.status.mode)  # a detector whose quality of service follows the phase
+        if self._set_view_tilt is not None:  # ... and the obliquity of the view
+            x, y = ego.q_WB[0], ego.q_WB[1]
+            self._set_view_tilt(t, math.acos(min(max(1.0 - 2.0 * float(x * x + y * y), -1.0), 1.0)))
         if self.status.changed and self.status.mode is Mode.TAKEOFF:
             # Standing on the ground is a disturbance to an adaptive or integrating controller (the
             # ground holds the vehicle against a reference below it): start the flight from zero.

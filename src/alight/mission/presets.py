@@ -126,6 +126,7 @@ def _flight_core(
             search_area=(area.x_min, area.x_max, area.y_min, area.y_max),
             camera_fov_rad=fov_rad,
             search_pattern=sc.mission.search_pattern,  # type: ignore[attr-defined]
+            aim_camera=sc.mission.aim_camera,  # type: ignore[attr-defined]
         ),
     )
     cs = sc.controller  # type: ignore[attr-defined]
