@@ -12,8 +12,8 @@
 In take-off and exploration the camera, not the body, follows the reference ("aiming"): a vehicle holding
 its position against a steady side force (wind) tilts into it, and its body-fixed downward camera then
 looks ``h tan(tilt)`` downwind; at 12 m in paper 004's 12 m/s gusts that is ~8 m, and a platform passing
-just upwind of the take-off point is never in view. The reference is shifted upwind by that much, with
-the tilt low-passed and the part of it that the reference's own acceleration asks for taken out.
+just upwind of the take-off point is never in view. The reference is shifted upwind by that much: the
+side force is the part of the tilt that the vehicle's measured acceleration does not explain, low-passed.
 
 Replanning (``update``) and sampling (``reference``) are separate so that the planner can run at 50 Hz
 while the controller samples the current plan at its own rate.
