@@ -175,5 +175,29 @@ def bench_detectors(
         cv2.setNumThreads(n_threads)
 
 
+def aruco_reference_ms(n_per_ground: int = 20, repeats: int = 3, seed: int = 0) -> float:
+    """The anchor of the real-time-factor benchmarks, timed now: OpenCV's ``ArucoDetector`` (alight's
+    ``aruco`` detector, DICT_APRILTAG_36h11) on this module's AprilTag-pad frames (``n_per_ground`` per
+    ground), the median over frames of the best of ``repeats``, in ms, one thread; the same measure as
+    ``aruco_apriltag36h11_ms_per_frame``, on the same frames by default."""
+    n_threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        frames = [f["apriltag"] for f in render_frames(n_per_ground, seed)]
+        aru = ArucoPadDetector(AprilTagPad.default())
+        aru.detect(frames[0], 0.0)  # warm-up
+        best = []
+        for img in frames:
+            b = math.inf
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                aru.detect(img, 0.0)
+                b = min(b, time.perf_counter() - t0)
+            best.append(b * 1e3)
+        return float(np.median(best))
+    finally:
+        cv2.setNumThreads(n_threads)
+
+
 if __name__ == "__main__":
     print(json.dumps(bench_detectors(), indent=1))

@@ -312,3 +312,21 @@ def test_homography_fit_is_exact_on_exact_data() -> None:
     for k in (4, 9):
         ok, H_est = fc._fit_h(src[:k], dst[:k], np.ones(k, bool))
         assert ok and np.allclose(H_est, H, rtol=1e-7, atol=1e-7)
+
+
+def test_the_range_finder_gates_the_close_range_stage() -> None:
+    """``set_range``: the stage runs below ``close_range_max_range_m`` (5 m) and without a valid reading,
+    and is skipped above it; Alg. 1's quad stage is never gated."""
+    det = FalangaTagDetector(TAG)
+    (sc,) = close_scenes(np.random.default_rng(11), 1, 0.8)
+    for reading in (None, 0.7, 5.0, math.nan, -1.0):
+        det.set_range(reading)
+        (o,) = det.detect(sc.image, 0.0)
+        assert o.kind.startswith("cross")
+    det.set_range(5.01)
+    assert det.detect(sc.image, 0.0) == []
+    far = render_scene(TAG, np.array([0.1, -0.1, 3.5]), tilt(0.05, -0.05, 0.3), P_WP, 0.7)
+    det.set_range(12.0)
+    assert det.detect(far.image, 0.0)[0].kind == "circle"
+    with pytest.raises(ValueError, match="close_range_max_range_m"):
+        FalangaDetectorConfig(close_range_max_range_m=0.0)

@@ -42,6 +42,39 @@ def test_exact_correspondences_give_the_exact_pose() -> None:
         assert np.allclose(res.R_CP.T @ res.R_CP, np.eye(3), atol=1e-12)
 
 
+def _refine_both(px: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """The pose (rvec, tvec) that refining both IPPE solutions and keeping the better fit gives."""
+    obj, img = pts.reshape(-1, 1, 3), px.reshape(-1, 1, 2)
+    n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, CAM.K, CAM.dist, flags=cv2.SOLVEPNP_IPPE)
+    best = None
+    for k in range(n):
+        rv, tv = cv2.solvePnPRefineLM(obj, img, CAM.K, CAM.dist, rvecs[k].copy(), tvecs[k].copy())
+        proj, _ = project_with_jacobian(pts, rv, tv, CAM.K, CAM.dist)
+        rms = float(np.sqrt(np.mean(np.sum((proj - px) ** 2, axis=1))))
+        if tv[2, 0] > 0 and (best is None or rms < best[0]):
+            best = (rms, np.r_[rv.ravel(), tv.ravel()])
+    assert best is not None
+    return best[1]
+
+
+def test_skipping_the_far_worse_ippe_solution_changes_no_pose() -> None:
+    # solve_pnp refines only the IPPE solutions within 4x of the better one's error; on noisy views from
+    # near (unambiguous) to far (both solutions close), the pose is the one refining both gives.
+    rng = np.random.default_rng(7)
+    for k in range(300):
+        rvec, tvec = pose(rng)
+        tvec = tvec * (0.3 + 3.0 * k / 300)  # 1 to 30 m: the ambiguity grows with range
+        pts = model_points(16) if k % 2 else TAG.quad_corners_P()
+        px, _ = project_with_jacobian(pts, rvec, tvec, CAM.K, CAM.dist)
+        px = px + rng.normal(0.0, 0.5, px.shape)
+        res = solve_pnp(px, pts, CAM)
+        assert res is not None
+        expected = _refine_both(px, pts)
+        # to LM's own termination tolerance; the other IPPE solution is 0.05 rad or more away
+        assert np.allclose(res.p_CP, expected[3:], atol=1e-5 * np.linalg.norm(expected[3:]))
+        assert np.allclose(res.R_CP, cv2.Rodrigues(expected[:3])[0], atol=1e-5)
+
+
 def test_four_quad_corners_suffice() -> None:
     rng = np.random.default_rng(1)
     rvec, tvec = pose(rng)

@@ -158,6 +158,7 @@ class Pipeline:
         self._set_prediction = getattr(detector, "set_prediction", None)
         self._set_mode = getattr(detector, "set_mode", None)
         self._set_view_tilt = getattr(detector, "set_view_tilt", None)
+        self._set_range = getattr(detector, "set_range", None)  # a detector with a close-range stage
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -225,6 +226,8 @@ class Pipeline:
         self.stats.frames += 1
         if self._set_prediction is not None:
             self._set_prediction(*self._pixel_prediction(t_capture))
+        if self._set_range is not None:
+            self._set_range(self.range_m)
         observations = self.detector.detect(image, t_capture)
         return observations, self.on_observations(t_capture, observations)
 

@@ -1,12 +1,17 @@
 """Perception: detectors that find a landing pad in a camera image, and geolocators that turn a detection
 into a platform measurement in the world frame.
 
-- :class:`Detector`: ``detect(image, t) -> list[Observation]``, a pure function of the image (no flight
-  state): ``falanga`` (paper 000's cross-and-ring tag, Alg. 1), ``aruco`` (the AprilTag pad's markers via
-  OpenCV), ``apriltag`` (every AprilTag 36h11 marker, no pad layout).
+- :class:`Detector`: ``detect(image, t) -> list[Observation]``, a function of the image alone unless one
+  of the hooks below was called: ``falanga`` (paper 000's cross-and-ring tag, Alg. 1), ``aruco`` (the
+  AprilTag pad's markers via OpenCV), ``apriltag`` (every AprilTag 36h11 marker, no pad layout).
 - :class:`Geolocator`: ``locate(observation, p_WB, R_WB) -> PlatformMeasurement | None`` with the ego pose
   at the capture time: ``pnp`` (PnP on the observation's points) and ``direct`` (observations that carry
   ``p_CP`` already, like the ground-truth sensor).
+
+Hooks: a detector may also have methods that the :class:`alight.mission.pipeline.Pipeline` calls before
+each image when they exist: ``set_prediction`` (where the estimator expects the target), ``set_mode`` and
+``set_view_tilt`` (the quality-of-service wrapper) and ``set_range`` (the range finder's reading, for the
+Falanga detector's close-range stage). Without them, ``detect`` depends on the image alone.
 
 :data:`REGISTRY` and :data:`GEOLOCATORS` map names to factories, so a preset picks blocks by name. A new
 detector: write ``perception/<name>.py`` with a class that satisfies :class:`Detector`, add a factory here,

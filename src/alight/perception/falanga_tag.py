@@ -139,6 +139,12 @@ class FalangaDetectorConfig:
     """When no tag quad is found, look for the cross alone (:mod:`alight.perception.falanga_close`, our
     extension of Alg. 1 for the last ~1.5 m of a landing, where the white square no longer fits in the
     view). False gives the paper's Alg. 1 only."""
+    close_range_max_range_m: float = 5.0
+    """The close-range stage is skipped while the range finder reads more than this (m), when the
+    pipeline passes the reading (:meth:`FalangaTagDetector.set_range`): the stage is for a camera below
+    ~1.6 m above the pad, and 5 m leaves room for a deck up to 2.5 m high beside the beam and a 30 deg
+    tilt. It would cost ~0.4 ms on every frame of a search at 12 m. Without a reading (none passed,
+    or an invalid one) the stage runs whenever Alg. 1 finds no quad."""
 
     def __post_init__(self) -> None:
         checks = {
@@ -158,6 +164,7 @@ class FalangaDetectorConfig:
             "ransac_threshold_px": self.ransac_threshold_px > 0,
             "min_edge_step": self.min_edge_step >= 0,
             "min_feature_px": self.min_feature_px > 0,
+            "close_range_max_range_m": self.close_range_max_range_m > 0,
         }
         bad = [k for k, ok in checks.items() if not ok]
         if bad:
@@ -1163,6 +1170,7 @@ class FalangaTagDetector:
         self._cross_xy = np.ascontiguousarray(self._cross_P[:, :2])
         # our close-range extension, run only when Alg. 1 finds no quad (see falanga_close.py)
         self._close = CloseRangeCrossDetector(t) if self.config.close_range else None
+        self._range_m: float | None = None
 
     # ------------------------------------------------------------------------------------ public API
 
@@ -1170,6 +1178,13 @@ class FalangaTagDetector:
         """Observations of the tag in ``image`` (grey or BGR uint8 of any size) captured at ``t`` (s): at
         most one; ``[]`` when there is no tag or the image is unusable (empty, tiny, not an image)."""
         return self._run(image, t, None) or self._run_close(image, t)
+
+    def set_range(self, range_m: float | None) -> None:
+        """The range finder's reading (m, to the surface below), or None when there is no valid one; the
+        close-range stage is skipped above ``config.close_range_max_range_m`` (the Pipeline passes it
+        before every image)."""
+        ok = range_m is not None and math.isfinite(range_m) and range_m >= 0
+        self._range_m = float(range_m) if ok else None  # type: ignore[arg-type]
 
     def detect_timed(self, image: object, t: float) -> tuple[list[Observation], dict[str, float]]:
         """As :meth:`detect`, plus the wall time of each stage (ms) keyed by :data:`STAGES` and ``total``:
@@ -1252,6 +1267,8 @@ class FalangaTagDetector:
         """The close-range stage (our extension of Alg. 1, :mod:`alight.perception.falanga_close`): the cross
         alone, for frames where :meth:`_run` found no quad."""
         if self._close is None:
+            return []
+        if self._range_m is not None and self._range_m > self.config.close_range_max_range_m:
             return []
         gray = as_gray_u8(image)
         obs = None if gray is None or min(gray.shape) < 16 else self._close.detect(gray, t)

@@ -111,11 +111,18 @@ def solve_pnp(
     d = dist if dist.size else None
     flag = cv2.SOLVEPNP_IPPE if planar else cv2.SOLVEPNP_SQPNP
     try:
-        n_sol, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, K, d, flags=flag)
+        n_sol, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, K, d, flags=flag)
     except cv2.error:
         return None
+    # IPPE's two solutions (the planar ambiguity) come with their reprojection errors. Refining both costs
+    # half of the solve; a solution with an error over 4x (and 1 px above) the better one's is in another
+    # basin, which LM refinement (a local step) cannot turn into the better fit, so it is not refined.
+    e = np.asarray(errs, dtype=np.float64).ravel() if errs is not None else np.zeros(0)
+    e_best = float(np.nanmin(e)) if e.size == int(n_sol) and e.size else math.inf
     best: tuple[float, FloatArray, FloatArray] | None = None
     for k in range(int(n_sol)):
+        if math.isfinite(e_best) and e[k] > max(4.0 * e_best, e_best + 1.0):
+            continue
         rv = np.asarray(rvecs[k], dtype=np.float64).reshape(3, 1)
         tv = np.asarray(tvecs[k], dtype=np.float64).reshape(3, 1)
         if not (np.isfinite(rv).all() and np.isfinite(tv).all()) or tv[2, 0] <= 0:
