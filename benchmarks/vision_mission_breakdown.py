@@ -33,10 +33,8 @@ from alight.perception.geolocation import PnpGeolocator
 from alight.scenario import scenario_from_dict
 from alight.sim.render import Renderer
 
-_SCENARIOS = (
-    {"preset": "falanga2017", "duration_s": 60.0, "platform": {"path": "straight", "speed_mps": 1.2}},
-    {"preset": "falanga2017", "duration_s": 60.0, "platform": {"path": "circle", "speed_mps": 2.0}},
-)
+# the missions of ``alight bench``'s vision group, so the two measure the same thing
+_SCENARIOS = load_benchmark("bench_vision_missions")._SCENARIOS
 _SIZE_BINS_PX = (0.0, 120.0, 240.0, 400.0, np.inf)
 
 

@@ -115,17 +115,20 @@ def solve_pnp(
     except cv2.error:
         return None
     # IPPE's two solutions (the planar ambiguity) come with their reprojection errors. Refining both costs
-    # half of the solve; a solution with an error over 4x (and 1 px above) the better one's is in another
-    # basin, which LM refinement (a local step) cannot turn into the better fit, so it is not refined.
+    # half of the solve; a solution with an error over 4x (and 1 px above) the best one's in front of the
+    # camera is in another basin, which LM refinement (a local step) cannot turn into the better fit.
     e = np.asarray(errs, dtype=np.float64).ravel() if errs is not None else np.zeros(0)
-    e_best = float(np.nanmin(e)) if e.size == int(n_sol) and e.size else math.inf
-    best: tuple[float, FloatArray, FloatArray] | None = None
+    candidates = []
     for k in range(int(n_sol)):
-        if math.isfinite(e_best) and e[k] > max(4.0 * e_best, e_best + 1.0):
-            continue
         rv = np.asarray(rvecs[k], dtype=np.float64).reshape(3, 1)
         tv = np.asarray(tvecs[k], dtype=np.float64).reshape(3, 1)
-        if not (np.isfinite(rv).all() and np.isfinite(tv).all()) or tv[2, 0] <= 0:
+        if np.isfinite(rv).all() and np.isfinite(tv).all() and tv[2, 0] > 0:
+            candidates.append((float(e[k]) if e.size == int(n_sol) else math.nan, rv, tv))
+    errors = [c[0] for c in candidates if math.isfinite(c[0])]
+    e_best = min(errors) if len(errors) == len(candidates) and errors else math.inf
+    best: tuple[float, FloatArray, FloatArray] | None = None
+    for err, rv, tv in candidates:
+        if err > max(4.0 * e_best, e_best + 1.0):
             continue
         try:
             rv, tv = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
