@@ -10,6 +10,7 @@ import pytest
 
 from alight.cli import main
 from alight.evaluation.runner import run_mission
+from alight.mission.pipeline import BLOCKS
 from alight.scenario import scenario_from_dict
 
 REQUIRED_RESULT_FIELDS = {
@@ -72,6 +73,11 @@ def test_falanga2017_mission_lands_on_vision_alone(path: str, speed: float, seed
     assert r["touchdown_error_m"] < 0.2
     assert r["detections"] > 50  # measurements came from the rendered images, through PnP
     assert r["time_first_detection_s"] < r["time_landing_start_s"] < r["time_to_land_s"]
+    # every block was charged its compute, and together they took less than the mission (which also
+    # rendered the images and stepped the physics)
+    blocks = r["block_time_s"]
+    assert set(blocks) == set(BLOCKS) and all(v > 0 for v in blocks.values()), blocks
+    assert sum(blocks.values()) < r["wall_time_s"]
 
 
 # kim_kaist (paper 003) end to end: rendered colour fisheye, colour filter, pixels into the UKF, L1

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from alight.airframe import DEFAULT_AIRFRAME
+from alight.mission.pipeline import BLOCKS
 from alight.mission.presets import build_preset
 from alight.scenario import scenario_from_dict
 
@@ -23,3 +26,31 @@ def test_the_falanga_detector_gets_the_range_finder_reading_before_each_image() 
     pipeline.on_range(0.01, None)  # an invalid reading: no range, the stage runs again
     pipeline.on_image(0.01, blank)
     assert detector._range_m is None
+
+
+class _SlowDetector:
+    """Finds nothing, after 20 ms."""
+
+    def detect(self, image: object, t: float) -> list:
+        time.sleep(0.02)
+        return []
+
+
+def test_the_detectors_time_is_charged_to_the_detector() -> None:
+    s = scenario_from_dict({"preset": "falanga2017", "seed": 1, "platform": {"path": "straight"}})
+    pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
+    pipeline.detector = _SlowDetector()  # type: ignore[assignment]
+    pipeline.ego_estimator.initialize(0.0, np.array([0.0, 0.0, 12.0]), np.zeros(3), np.array([0, 0, 0, 1.0]))
+    before = dict(pipeline.stats.block_time_s)
+    for k in range(3):
+        pipeline.on_image(0.05 * k, np.zeros((480, 752), np.uint8))
+    spent = {b: pipeline.stats.block_time_s[b] - before[b] for b in BLOCKS}
+    assert spent["detector"] >= 0.06
+    assert all(spent[b] == 0.0 for b in BLOCKS if b != "detector"), spent  # nothing else ran
+    detector_s = pipeline.stats.block_time_s["detector"]
+    pipeline.step(0.2)  # the mission starts the take-off, the guidance plans it
+    pipeline.command(0.2)  # the controller flies it
+    after = pipeline.stats.block_time_s
+    assert after["mission"] > 0 and after["guidance"] > 0 and after["controller"] > 0
+    assert after["ego_estimator"] > 0
+    assert after["detector"] == detector_s

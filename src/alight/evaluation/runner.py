@@ -434,6 +434,7 @@ def run_mission(
         "off_target_s": off_target_s,
         "simulated_time_s": t,
         "wall_time_s": wall,
+        "block_time_s": {k: round(v, 6) for k, v in stats.block_time_s.items()},
         "alight_version": alight.__version__,
     }
     history = [(tt, m.value, why) for tt, m, why in pipeline.mission.history]

@@ -11,6 +11,7 @@ controller's rate.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -114,6 +115,18 @@ class CapturePose:
     v_WB: FloatArray
 
 
+BLOCKS = (
+    "ego_estimator",
+    "detector",
+    "geolocator",
+    "platform_estimator",
+    "mission",
+    "guidance",
+    "controller",
+)
+"""The blocks whose wall time :class:`PipelineStats` accumulates (what a preset swaps), in data-flow order."""
+
+
 @dataclass
 class PipelineStats:
     """Counts the runner reports in ``result.json``."""
@@ -124,7 +137,15 @@ class PipelineStats:
     rejected_measurements: int = 0
     t_first_detection: float | None = None
     t_landing_start: float | None = None
-    block_time_s: dict[str, float] = field(default_factory=dict)
+    block_time_s: dict[str, float] = field(default_factory=lambda: dict.fromkeys(BLOCKS, 0.0))
+    """Wall-clock time spent in each block (s), keyed by :data:`BLOCKS`: what each algorithm costs on
+    this machine, for comparing blocks' compute alongside their accuracy."""
+
+    def charge(self, block: str, t0: float) -> float:
+        """Add the time since ``t0`` (a ``time.perf_counter()`` reading) to ``block``; returns now."""
+        now = time.perf_counter()
+        self.block_time_s[block] += now - t0
+        return now
 
 
 class Pipeline:
@@ -191,17 +212,21 @@ class Pipeline:
     def _flush_imu(self) -> None:
         n, self._imu_n = self._imu_n, 0
         if n:
+            t0 = time.perf_counter()
             self.ego_estimator.predict_imu_many(self._imu_t, self._imu_f, self._imu_w, n)
+            self.stats.charge("ego_estimator", t0)
 
     def on_odometry(
         self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
     ) -> None:
         self._ego = None
         self._flush_imu()
+        t0 = time.perf_counter()
         if not self.ego_estimator.initialized:
             self.ego_estimator.initialize(t, p_WB, _ZERO3 if v_WB is None else v_WB, q_WB)
-            return
-        self.ego_estimator.update_odometry(t, p_WB, q_WB, v_WB)
+        else:
+            self.ego_estimator.update_odometry(t, p_WB, q_WB, v_WB)
+        self.stats.charge("ego_estimator", t0)
 
     def on_range(self, t: float, range_m: float | None) -> None:
         """A range-finder reading (m, from the landing-gear feet); None or non-finite when invalid.
@@ -228,7 +253,9 @@ class Pipeline:
             self._set_prediction(*self._pixel_prediction(t_capture))
         if self._set_range is not None:
             self._set_range(self.range_m)
+        t0 = time.perf_counter()
         observations = self.detector.detect(image, t_capture)
+        self.stats.charge("detector", t0)
         return observations, self.on_observations(t_capture, observations)
 
     def _pixel_prediction(self, t_capture: float) -> tuple[FloatArray | None, float | None]:
@@ -249,18 +276,23 @@ class Pipeline:
         p_WB, R_WB = pose
         self.stats.observations += len(observations)
         best = max(observations, key=lambda o: o.quality)
+        t0 = time.perf_counter()
         measurement = self.geolocator.locate(best, p_WB, R_WB)
+        self.stats.charge("geolocator", t0)
         if measurement is None:
             return out
         self._target = None
+        ego = self.ego() if self._feed_ego is not None else None
+        t0 = time.perf_counter()
         if self._feed_ego is not None:
-            self._feed_ego(self.ego())
+            self._feed_ego(ego)
         if self._update_pixel is not None and best.pixels.shape[0] >= 1:
             # The estimator fuses the pixel through its own camera model; the geolocated point above is
             # what the pipeline reports (logs, detections) for the same image.
             used = self._update_pixel(t_capture, best.pixels[0], self.history.state_at(t_capture))
         else:
             used = self.platform_estimator.update(measurement)
+        self.stats.charge("platform_estimator", t0)
         if used:
             self.stats.measurements += 1
             if self.stats.t_first_detection is None:
@@ -277,7 +309,9 @@ class Pipeline:
         # on_imu and on_odometry drop the cached state.
         if self._ego is None:
             self._flush_imu()
+            t0 = time.perf_counter()
             self._ego = self.ego_estimator.state()
+            self.stats.charge("ego_estimator", t0)
         return self._ego
 
     def target(self, t: float) -> PlatformEstimate | None:
@@ -286,14 +320,18 @@ class Pipeline:
         if not self.platform_estimator.has_measurement:
             return None
         if self._target is None or self._target.t != t:  # the mission and the log ask at the same t
+            t0 = time.perf_counter()
             self._target = self.platform_estimator.state(t)
+            self.stats.charge("platform_estimator", t0)
         return self._target
 
     def step(self, t: float) -> MissionStatus:
         """Run the mission logic and replan (at the planner's rate)."""
         ego = self.ego()
         target = self.target(t)
+        t0 = time.perf_counter()
         self.status = self.mission.step(t, ego, target, self.range_m)
+        t0 = self.stats.charge("mission", t0)
         if self.status.changed and self._set_mode is not None:
             self._set_mode(self.status.mode)  # a detector whose quality of service follows the phase
         if self._set_view_tilt is not None:  # ... and the obliquity of the view
@@ -305,9 +343,10 @@ class Pipeline:
             self.controller.reset()
         if self.status.changed and self.status.mode is Mode.LAND and self.stats.t_landing_start is None:
             self.stats.t_landing_start = t
-        self.guidance.update(
-            t, self.status.mode, ego, target, self.platform_estimator, self.mission.hover_point_W()
-        )
+        hover_W = self.mission.hover_point_W()
+        t0 = time.perf_counter()
+        self.guidance.update(t, self.status.mode, ego, target, self.platform_estimator, hover_W)
+        self.stats.charge("guidance", t0)
         return self.status
 
     def command(self, t: float) -> Command:
@@ -315,12 +354,18 @@ class Pipeline:
         ego = self.ego()
         self.history.add(t, ego.p_WB, ego.q_WB, ego.v_WB)
         if self._feed_ego is not None:
+            t0 = time.perf_counter()
             self._feed_ego(ego)
+            self.stats.charge("platform_estimator", t0)
             self._target = None
         mode = self.status.mode
         if mode in (Mode.LANDED, Mode.IDLE):
             return Command(t, 0.0, _ZERO3, motors_off=True)
         target = self.target(t) if mode in (Mode.LAND, Mode.GO_AROUND) else None
+        t0 = time.perf_counter()
         ref = self.guidance.reference(t, mode, target)
+        t0 = self.stats.charge("guidance", t0)
         self.last_reference = ref
-        return self.controller.command(ego, ref)
+        cmd = self.controller.command(ego, ref)
+        self.stats.charge("controller", t0)
+        return cmd
