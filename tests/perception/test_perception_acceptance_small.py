@@ -5,6 +5,7 @@ asserting the issue's targets, so that CI keeps checking them."""
 from __future__ import annotations
 
 import importlib.util
+import json
 import math
 from pathlib import Path
 from types import ModuleType
@@ -94,3 +95,20 @@ def test_sensor_noise_is_the_renderers(bench: ModuleType) -> None:
     d = np.concatenate([noise.add(np.full((480, 752), 128, np.uint8)).astype(float) - 128 for _ in range(4)])
     assert abs(d.mean()) < 0.02
     assert d.std() == pytest.approx(bench.NOISE_DN, rel=0.03)
+
+
+def test_a_short_run_leaves_the_docs_plot_alone(
+    bench: ModuleType, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Only the full acceptance run replaces ``docs/detection_vs_pad_size.png``; a short one writes a plot
+    only where ``--plot`` says."""
+    docs_plot = bench._DOCS_PLOT
+    before = docs_plot.read_bytes() if docs_plot.exists() else None
+    tiny = ["--frames", "4", "--negatives", "1", "--small-frames", "2", "--repeats", "1", "--no-pupil"]
+    assert bench.main(tiny) == 0
+    assert "plot" not in json.loads(capsys.readouterr().out)
+    asked = tmp_path / "by_size.png"
+    assert bench.main([*tiny, "--plot", str(asked)]) == 0
+    assert json.loads(capsys.readouterr().out)["plot"] == str(asked)
+    assert asked.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (docs_plot.read_bytes() if docs_plot.exists() else None) == before
