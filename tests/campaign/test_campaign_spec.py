@@ -240,3 +240,16 @@ def test_the_sdu_conditions_fly_the_12_mps_gust_force() -> None:
     assert len(gusty) == 40
     assert all(math.isclose(m.scenario["wind"]["gust_power_N"], 7.76) for m in gusty)
     assert all(math.isclose(m.scenario["platform"]["speed_mps"], 1.5) for m in sdu.missions)
+
+
+def test_the_falanga2017_conditions_are_paper_000s() -> None:
+    # Issue 3's closed-loop table: straight 1.2 m/s, circle 2 m/s, figure-8 4.2 m/s, 20 seeds each, the
+    # vision preset and its ground-truth ablation on the same seeds.
+    fal = load_campaign(ROOT / "examples" / "campaigns" / "falanga2017_conditions.yaml")
+    assert fal.spec.seeds_per_condition == 20 and fal.presets == ["falanga2017", "groundtruth"]
+    flown = {(m.scenario["platform"]["path"], m.scenario["platform"]["speed_mps"]) for m in fal.missions}
+    assert flown == {("straight", 1.2), ("circle", 2.0), ("figure8", 4.2)}
+    assert len(fal.missions) == 3 * 2 * 20
+    assert all(m.scenario["wind"]["model"] == "none" for m in fal.missions)
+    seeds = {p: sorted(m.seed for m in fal.missions if m.preset == p) for p in fal.presets}
+    assert seeds["falanga2017"] == seeds["groundtruth"]
