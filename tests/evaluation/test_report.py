@@ -303,3 +303,32 @@ def test_no_pyplot():
     for _, _, plot in FIGURES:
         plot(log.finalize(), {"t_touchdown": 0.5})
     assert had_pyplot or "matplotlib.pyplot" not in sys.modules
+
+
+def test_compute_section_shares_the_wall_time_between_blocks_and_simulator() -> None:
+    from alight.evaluation.report import _compute_html
+
+    blocks = {"ego_estimator": 0.05, "detector": 0.2, "controller": 0.0}
+    result = {"block_time_s": blocks, "wall_time_s": 0.5, "simulated_time_s": 20.0}
+    page = _compute_html(result)
+    p = _Checker()
+    p.feed(page)
+    p.close()
+    assert not p.errors and p.stack == []
+    text = "".join(p.text)
+    # ms, ms per simulated second, share: the detector 200 ms = 10 ms/s = 40 %; the simulator gets the
+    # 250 ms no block accounts for
+    assert "detector200.010.0040.0 %" in text
+    assert "simulator250.012.5050.0 %" in text
+    assert "controller0.00.000.0 %" in text
+    # nothing to show without the figures it needs, or with nonsense in them
+    assert _compute_html({"wall_time_s": 0.5, "simulated_time_s": 20.0}) == ""
+    assert _compute_html({**result, "wall_time_s": None}) == ""
+    assert _compute_html({**result, "block_time_s": {"detector": float("nan")}}) == ""
+
+
+def test_mission_report_has_the_compute_section(tmp_path) -> None:
+    result = dict(RESULT, block_time_s={"detector": 0.3, "guidance": 0.1}, simulated_time_s=40.0)
+    path = write_mission_report(tmp_path, result, _circle_log(), dpi=40)
+    text = "".join(_check_report(path).text)
+    assert "Compute" in text and "ms per simulated s" in text and "simulator" in text

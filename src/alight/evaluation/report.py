@@ -71,6 +71,8 @@ h2 { font-size: 1.15rem; margin: 30px 0 10px; font-weight:600; }
                 overflow:hidden; white-space:nowrap; color:#222; }
 .legend { color:var(--muted); font-size:0.82rem; margin-top:6px; }
 .legend span.sw { display:inline-block; width:11px; height:11px; border-radius:2px; margin:0 4px -1px 12px; }
+table.compute span.sw { display:inline-block; width:11px; height:11px; border-radius:2px;
+                        margin:0 8px -1px 0; }
 figure { margin: 0 0 10px; }
 figure img { max-width:100%; height:auto; border:1px solid var(--line); border-radius:6px; }
 figcaption { color:var(--muted); font-size:0.85rem; }
@@ -295,6 +297,57 @@ def _timeline_html(log: Mapping[str, np.ndarray]) -> str:
     return f'<div class="timeline">{"".join(blocks)}</div>\n<div class="legend">mode:{legend}</div>'
 
 
+_BLOCK_COLORS = ("#4c78a8", "#f58518", "#54a24b", "#e45756", "#72b7b2", "#b279a2", "#eeca3b")
+_SIMULATOR_COLOR = "#bab0ac"
+
+
+def _compute_html(result: Mapping[str, Any]) -> str:
+    """Where the mission's wall time went: each pipeline block (``block_time_s``) and the simulator (the
+    rest of ``wall_time_s``: physics, sensors, rendering, the log), as a stacked bar and a table with ms per
+    simulated second, the figure that compares algorithms' cost across missions of any length."""
+    blocks = result.get("block_time_s")
+    wall = _finite_or_none(result.get("wall_time_s"))
+    sim = _finite_or_none(result.get("simulated_time_s"))
+    if not isinstance(blocks, Mapping) or not wall or not sim or wall <= 0 or sim <= 0:
+        return ""
+    parts: list[tuple[str, float, str]] = []
+    for k, (name, value) in enumerate(blocks.items()):
+        v = _finite_or_none(value)
+        if v is not None and v >= 0:
+            parts.append((str(name), v, _BLOCK_COLORS[k % len(_BLOCK_COLORS)]))
+    if not parts:
+        return ""
+    parts.append(("simulator", max(wall - sum(v for _, v, _ in parts), 0.0), _SIMULATOR_COLOR))
+    total = sum(v for _, v, _ in parts) or 1.0
+    esc = html.escape
+    bar, rows = [], []
+    for name, v, color in parts:
+        share = v / total
+        if v > 0:
+            text = esc(name) if share > 0.08 else ""
+            bar.append(
+                f'<div style="flex:{v:.6g} 0 0;background:{color}" title="{esc(name)}: '
+                f'{1e3 * v:.1f} ms ({100 * share:.0f} %)">{text}</div>'
+            )
+        rows.append(
+            f'<tr><td><span class="sw" style="background:{color}"></span>{esc(name)}</td>'
+            f'<td class="num">{1e3 * v:.1f}</td><td class="num">{1e3 * v / sim:.2f}</td>'
+            f'<td class="num">{100 * share:.1f} %</td></tr>'
+        )
+    return "\n".join(
+        [
+            "<h2>Compute</h2>",
+            f'<div class="timeline">{"".join(bar)}</div>',
+            '<table class="compute">',
+            "<thead><tr><th>block</th><th>ms</th><th>ms per simulated s</th><th>share</th></tr></thead>",
+            "<tbody>",
+            *rows,
+            "</tbody>",
+            "</table>",
+        ]
+    )
+
+
 def _events_line(events: Mapping[str, float | None]) -> str:
     parts = []
     for key, sym, label in EVENTS:
@@ -350,6 +403,7 @@ def render_mission_html(
     out.append("</section>")
     out.append(_timeline_html(log))
     out.append(_events_line(events))
+    out.append(_compute_html(result))
 
     for stem, heading, _ in FIGURES:
         png = figures.get(stem)
