@@ -422,6 +422,19 @@ class Command:
         return self
 
 
+PIPELINE_BLOCKS = (
+    "ego_estimator",
+    "detector",
+    "geolocator",
+    "platform_estimator",
+    "mission",
+    "guidance",
+    "controller",
+)
+"""The pipeline's blocks, in data-flow order: what a preset swaps, and what the pipeline times
+(``result.json``'s ``block_time_s``, a campaign's ``<block>_time_s`` columns)."""
+
+
 class Mode(enum.StrEnum):
     """Mission modes (paper 000 Sec. II-F plus the failsafe modes)."""
 

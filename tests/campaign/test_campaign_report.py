@@ -550,3 +550,78 @@ def test_console_error_detection_works(tmp_path):
     bad.write_text("<!DOCTYPE html><html><body><p>x</p><script>nosuchfunction();</script></body></html>")
     proc = _chromium(["--dump-dom", bad.resolve().as_uri()], tmp_path)
     assert _console_errors(proc.stderr)
+
+
+# --------------------------------------------------------------------------------------------------
+# compute per block
+# --------------------------------------------------------------------------------------------------
+
+
+def test_compute_per_simulated_second_is_a_ratio_of_sums() -> None:
+    from alight.campaign.summary import compute_per_simulated_s
+    from alight.types import PIPELINE_BLOCKS
+
+    def times(detector: float, other: float) -> dict[str, float | None]:
+        return {b: (detector if b == "detector" else other) for b in PIPELINE_BLOCKS}
+
+    missions = [
+        (times(0.1, 0.01), 10.0, 1.0),
+        (times(0.3, 0.02), 30.0, 2.0),
+        ({**times(5.0, 5.0), "mission": None}, 10.0, 50.0),  # an older row without every block: left out
+        (times(5.0, 5.0), None, 50.0),  # no simulated time: left out
+    ]
+    got = compute_per_simulated_s(missions)
+    assert got["detector"] == pytest.approx(1e3 * 0.4 / 40.0)
+    for b in PIPELINE_BLOCKS:
+        if b != "detector":
+            assert got[b] == pytest.approx(1e3 * 0.03 / 40.0)
+    blocks_s = 0.4 + 0.03 * (len(PIPELINE_BLOCKS) - 1)
+    assert got["simulator"] == pytest.approx(1e3 * (3.0 - blocks_s) / 40.0)
+    assert compute_per_simulated_s([]) == dict.fromkeys([*PIPELINE_BLOCKS, "simulator"])
+
+
+def test_report_compares_the_presets_compute_when_the_rows_have_block_times(tmp_path: Path) -> None:
+    from alight.campaign.store import BLOCK_TIME_COLUMNS, RESULT_COLUMNS, columns_for
+
+    header = columns_for(["platform.speed_mps"])
+    assert set(BLOCK_TIME_COLUMNS) <= set(RESULT_COLUMNS)
+    rows = []
+    for preset, detector_s in (("groundtruth", 0.0), ("falanga2017", 0.8)):
+        for r in range(2):
+            row = dict.fromkeys(header, "")
+            row.update(
+                {
+                    "mission_id": f"c000-{preset}-r{r:03d}",
+                    "condition_id": "c000",
+                    "preset": preset,
+                    "replicate": str(r),
+                    "seed": str(r),
+                    "platform.speed_mps": "1.2",
+                    "outcome": "landed",
+                    "success": "1",
+                    "touchdown_error_m": "0.05",
+                    "simulated_time_s": "20.0",
+                    "wall_time_s": "1.5",
+                    **{c: "0.01" for c in BLOCK_TIME_COLUMNS},
+                    "detector_time_s": repr(detector_s),
+                }
+            )
+            rows.append(row)
+    with (tmp_path / "results.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header)
+        w.writeheader()
+        w.writerows(rows)
+    res = read_results(tmp_path)
+    vision = group_stats([m for m in res.missions if m.preset == "falanga2017"])
+    assert vision["compute_ms_per_simulated_s"]["detector"] == pytest.approx(1e3 * 1.6 / 40.0)
+    truth = group_stats([m for m in res.missions if m.preset == "groundtruth"])
+    assert truth["compute_ms_per_simulated_s"]["detector"] == 0.0
+    page = write_campaign_report(tmp_path).read_text(encoding="utf-8")
+    assert "<h2>Compute</h2>" in page and "milliseconds per simulated second" in page
+    assert "40.00" in page  # falanga2017's detector: 1.6 s over 40 simulated seconds
+
+
+def test_report_of_a_campaign_without_block_times_has_no_compute_section(tmp_path: Path) -> None:
+    make_campaign(tmp_path, seeds=2, grid=(("platform.speed_mps", [1.0]),))
+    page = write_campaign_report(tmp_path).read_text(encoding="utf-8")
+    assert "<h2>Compute</h2>" not in page and "<h2>Presets</h2>" in page

@@ -46,11 +46,13 @@ from matplotlib.patches import Patch
 from scipy.stats import binomtest
 
 from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
+from alight.campaign.summary import compute_per_simulated_s
 from alight.errors import InputError
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
 from alight.evaluation.replay import REPLAY_GIF
 from alight.evaluation.report import _CSS as _MISSION_CSS
-from alight.evaluation.report import OUTCOME_COLORS, format_quantity
+from alight.evaluation.report import BLOCK_COLORS, OUTCOME_COLORS, SIMULATOR_COLOR, format_quantity
+from alight.types import PIPELINE_BLOCKS
 
 REPORT_HTML = "report.html"
 RESULTS_CSV = "results.csv"
@@ -275,6 +277,14 @@ def group_stats(missions: Sequence[Mission]) -> dict[str, Any]:
         },
         "energy_flight_J": {"mean": _mean(m.values["energy_flight_J"] for m in flew)},
         "energy_compute_J": {"mean": _mean(m.values["energy_compute_J"] for m in flew)},
+        "compute_ms_per_simulated_s": compute_per_simulated_s(
+            (
+                {b: m.values[f"{b}_time_s"] for b in PIPELINE_BLOCKS},
+                m.values["simulated_time_s"],
+                m.values["wall_time_s"],
+            )
+            for m in flew
+        ),
         "outcomes": {o: sum(1 for m in missions if m.outcome == o) for o in _outcomes_of(missions)},
     }
 
@@ -663,6 +673,36 @@ def plot_outcomes(presets: Sequence[str], counts: Sequence[Mapping[str, int]]) -
     return fig
 
 
+def plot_compute(presets: Sequence[str], per_s: Sequence[Mapping[str, float | None]]) -> Figure:
+    """Wall time per simulated second of each pipeline block and of the simulator, per preset, as
+    stacked horizontal bars (ms per simulated second; the bar's end is the whole mission's cost)."""
+    h = 0.9 + 0.42 * len(presets)
+    fig = new_figure(11.0, h)
+    label_w = min(2.6, 0.5 + 0.08 * max(len(p) for p in presets))
+    ax = fig.add_axes((label_w / 11.0, 0.55 / h, 1 - (label_w + 2.2) / 11.0, (h - 0.75) / h))
+    parts = [*zip(PIPELINE_BLOCKS, BLOCK_COLORS, strict=False), ("simulator", SIMULATOR_COLOR)]
+    right = 0.0
+    for i, c in enumerate(per_s):
+        left = 0.0
+        for name, color in parts:
+            v = c.get(name)
+            if v is None or v <= 0:
+                continue
+            ax.barh(i, v, left=left, color=color, height=0.7)
+            left += v
+        if left > 0:
+            ax.text(left, i, f" {left:.1f}", ha="left", va="center", fontsize=8)
+        right = max(right, left)
+    ax.set_yticks(range(len(presets)), presets, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlim(0, 1.12 * right if right > 0 else 1.0)
+    ax.set_xlabel("wall-clock ms per simulated second", fontsize=8)
+    ax.tick_params(labelsize=8)
+    handles = [Patch(color=color, label=name) for name, color in parts]
+    ax.legend(handles=handles, fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    return fig
+
+
 def _outcome_color(outcome: str) -> str:
     return OUTCOME_COLORS.get(outcome, "#8c8c8c")
 
@@ -802,6 +842,42 @@ def _comparison_table(res: Results, per_preset: dict[str, dict[str, Any]]) -> li
         cells.append(f'<td class="num"{err_style}>{st["errors"]}</td>')
         out.append("<tr>" + "".join(cells) + "</tr>")
     out += ["</tbody></table></div>"]
+    return out
+
+
+def _compute_section(res: Results, per_preset: dict[str, dict[str, Any]]) -> list[str]:
+    """What each preset's blocks cost: ms of wall time per simulated second (figure and table), from the
+    missions' block times; nothing when no mission has them (an older campaign)."""
+    per_s = [per_preset[p]["compute_ms_per_simulated_s"] for p in res.presets]
+    if all(c.get("simulator") is None for c in per_s):
+        return []
+    names = [*PIPELINE_BLOCKS, "simulator"]
+    out = [
+        "<h2>Compute</h2>",
+        _figure(plot_compute(res.presets, per_s), "compute per simulated second per preset"),
+        '<div class="scroll"><table class="cmp">',
+        "<thead><tr><th>preset</th>"
+        + "".join(f"<th>{_esc(n)}</th>" for n in names)
+        + "<th>total</th></tr></thead>",
+        "<tbody>",
+    ]
+    totals = [None if c.get("simulator") is None else sum(c[n] or 0.0 for n in names) for c in per_s]
+    for p, c, total in zip(res.presets, per_s, totals, strict=True):
+        cells = [f"<td><b>{_esc(p)}</b></td>"]
+        for n in [*names, "total"]:
+            v = total if n == "total" else c.get(n)
+            others = totals if n == "total" else [q.get(n) for q in per_s]
+            bg = _rank_color(v, others)
+            style = f' style="background:{bg}"' if bg else ""
+            text = "\u2014" if v is None else f"{v:.2f}"
+            cells.append(f'<td class="num"{style}>{text}</td>')
+        out.append("<tr>" + "".join(cells) + "</tr>")
+    out += [
+        "</tbody></table></div>",
+        '<p class="muted">Wall-clock milliseconds per simulated second, over the missions that flew, on the '
+        "machines that flew them: each pipeline block, and the simulator (physics, sensors, rendering, "
+        "the rest of the mission's wall time). Green marks the cheapest preset.</p>",
+    ]
     return out
 
 
@@ -1030,6 +1106,7 @@ def render_campaign_html(res: Results, out_dir: Path) -> str:
     )
     fig = plot_outcomes(res.presets, [per_preset[p]["outcomes"] for p in res.presets])
     out.append(_figure(fig, "outcomes per preset"))
+    out += _compute_section(res, per_preset)
 
     out += _maps_section(res)
 

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from alight.errors import InputError
+from alight.types import PIPELINE_BLOCKS
 
 RESULTS_CSV = "results.csv"
 SUMMARY_JSON = "summary.json"
@@ -31,6 +32,8 @@ ERROR_TXT = "error.txt"
 RESULT_JSON = "result.json"
 
 ID_COLUMNS = ("mission_id", "condition_id", "preset", "replicate", "seed")
+BLOCK_TIME_COLUMNS = tuple(f"{block}_time_s" for block in PIPELINE_BLOCKS)
+"""Wall time of each pipeline block in the mission (s), from ``result.json``'s ``block_time_s``."""
 RESULT_COLUMNS = (
     "outcome",
     "success",
@@ -46,6 +49,7 @@ RESULT_COLUMNS = (
     "platform_estimate_rmse_m",
     "false_detections",
     "false_lock",
+    *BLOCK_TIME_COLUMNS,
     "simulated_time_s",
     "wall_time_s",
     "mission_dir",
@@ -63,6 +67,7 @@ NUMERIC_COLUMNS = (
     "go_arounds",
     "platform_estimate_rmse_m",
     "false_detections",
+    *BLOCK_TIME_COLUMNS,
     "simulated_time_s",
     "wall_time_s",
 )

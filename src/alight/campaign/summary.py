@@ -1,5 +1,6 @@
-"""summary.json: per preset and condition, the success rate with its Wilson 95 % interval and the
-distribution of the touchdown error, from results.csv and the campaign's lock file.
+"""summary.json: per preset and condition, the success rate with its Wilson 95 % interval, the
+distribution of the touchdown error and the compute of each pipeline block per simulated second, from
+results.csv and the campaign's lock file.
 
 ``n`` counts every finished mission of a group, ``errors`` those that did not fly to an outcome (an
 exception, a timeout, a dead worker). An error says nothing about landing, so the success rate and its
@@ -10,7 +11,7 @@ n_flown`` (null when nothing flew).
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,7 @@ import numpy as np
 import alight
 from alight.campaign.store import RESULTS_CSV, SUMMARY_JSON, parse_float, read_lock, read_rows, write_json
 from alight.errors import InputError
+from alight.types import PIPELINE_BLOCKS
 
 
 def wilson95(successes: int, n: int) -> tuple[float, float] | None:
@@ -60,6 +62,36 @@ def _stats(values: list[float], which: Sequence[str]) -> dict[str, float | None]
     return {k: float(known[k]()) for k in which}
 
 
+def compute_per_simulated_s(
+    missions: Iterable[tuple[Mapping[str, float | None], float | None, float | None]],
+) -> dict[str, float | None]:
+    """Milliseconds of wall time per simulated second of each pipeline block, and of the ``simulator``
+    (the rest of the missions' wall time: physics, sensors, rendering), over ``missions`` given as
+    ``(block -> seconds, simulated s, wall s)``. A ratio of sums, so long missions weigh as much as
+    their length; missions without the block times or the clocks are left out. None without any."""
+    blocks = dict.fromkeys(PIPELINE_BLOCKS, 0.0)
+    sim_total = wall_total = 0.0
+    for times, sim_s, wall_s in missions:
+        values = [times.get(b) for b in PIPELINE_BLOCKS]
+        if sim_s is None or wall_s is None or sim_s <= 0 or any(v is None for v in values):
+            continue
+        for b, v in zip(PIPELINE_BLOCKS, values, strict=True):
+            blocks[b] += float(v)  # type: ignore[arg-type]
+        sim_total += sim_s
+        wall_total += wall_s
+    keys = (*PIPELINE_BLOCKS, "simulator")
+    if sim_total <= 0:
+        return dict.fromkeys(keys)
+    out: dict[str, float | None] = {b: 1e3 * v / sim_total for b, v in blocks.items()}
+    out["simulator"] = 1e3 * max(wall_total - sum(blocks.values()), 0.0) / sim_total
+    return out
+
+
+def _row_compute(r: Mapping[str, str]) -> tuple[dict[str, float | None], float | None, float | None]:
+    times = {b: parse_float(r.get(f"{b}_time_s", "")) for b in PIPELINE_BLOCKS}
+    return times, parse_float(r.get("simulated_time_s", "")), parse_float(r.get("wall_time_s", ""))
+
+
 def group_summary(rows: Sequence[Mapping[str, str]]) -> dict[str, Any]:
     """Counts, success rate, Wilson interval and statistics of one group's rows."""
     n = len(rows)
@@ -80,6 +112,7 @@ def group_summary(rows: Sequence[Mapping[str, str]]) -> dict[str, Any]:
         "time_to_land_s": _stats(_values(landed, "time_to_land_s"), ("p50", "mean")),
         "energy_flight_J": _stats(_values(flew, "energy_flight_J"), ("mean",)),
         "energy_compute_J": _stats(_values(flew, "energy_compute_J"), ("mean",)),
+        "compute_ms_per_simulated_s": compute_per_simulated_s(_row_compute(r) for r in flew),
     }
 
 

@@ -297,8 +297,10 @@ def _timeline_html(log: Mapping[str, np.ndarray]) -> str:
     return f'<div class="timeline">{"".join(blocks)}</div>\n<div class="legend">mode:{legend}</div>'
 
 
-_BLOCK_COLORS = ("#4c78a8", "#f58518", "#54a24b", "#e45756", "#72b7b2", "#b279a2", "#eeca3b")
-_SIMULATOR_COLOR = "#bab0ac"
+BLOCK_COLORS = ("#4c78a8", "#f58518", "#54a24b", "#e45756", "#72b7b2", "#b279a2", "#eeca3b")
+"""Colours of the pipeline blocks (``alight.types.PIPELINE_BLOCKS``, in order) in compute plots."""
+SIMULATOR_COLOR = "#bab0ac"
+"""Colour of the simulator's share (physics, sensors, rendering) in compute plots."""
 
 
 def _compute_html(result: Mapping[str, Any]) -> str:
@@ -314,10 +316,10 @@ def _compute_html(result: Mapping[str, Any]) -> str:
     for k, (name, value) in enumerate(blocks.items()):
         v = _finite_or_none(value)
         if v is not None and v >= 0:
-            parts.append((str(name), v, _BLOCK_COLORS[k % len(_BLOCK_COLORS)]))
+            parts.append((str(name), v, BLOCK_COLORS[k % len(BLOCK_COLORS)]))
     if not parts:
         return ""
-    parts.append(("simulator", max(wall - sum(v for _, v, _ in parts), 0.0), _SIMULATOR_COLOR))
+    parts.append(("simulator", max(wall - sum(v for _, v, _ in parts), 0.0), SIMULATOR_COLOR))
     total = sum(v for _, v, _ in parts) or 1.0
     esc = html.escape
     bar, rows = [], []

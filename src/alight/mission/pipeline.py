@@ -21,6 +21,7 @@ from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
 from alight.types import (
+    PIPELINE_BLOCKS,
     Command,
     EgoState,
     FloatArray,
@@ -115,16 +116,8 @@ class CapturePose:
     v_WB: FloatArray
 
 
-BLOCKS = (
-    "ego_estimator",
-    "detector",
-    "geolocator",
-    "platform_estimator",
-    "mission",
-    "guidance",
-    "controller",
-)
-"""The blocks whose wall time :class:`PipelineStats` accumulates (what a preset swaps), in data-flow order."""
+BLOCKS = PIPELINE_BLOCKS
+"""The blocks whose wall time :class:`PipelineStats` accumulates, in data-flow order."""
 
 
 @dataclass
