@@ -253,3 +253,16 @@ def test_the_falanga2017_conditions_are_paper_000s() -> None:
     assert all(m.scenario["wind"]["model"] == "none" for m in fal.missions)
     seeds = {p: sorted(m.seed for m in fal.missions if m.preset == p) for p in fal.presets}
     assert seeds["falanga2017"] == seeds["groundtruth"]
+
+
+def test_the_falanga2017_gusts_pair_the_integral_on_the_same_seeds() -> None:
+    gusts = load_campaign(ROOT / "examples" / "campaigns" / "falanga2017_gusts.yaml")
+    assert gusts.presets == ["falanga2017", "groundtruth"] and len(gusts.missions) == 2 * 2 * 2 * 20
+    forces = {m.scenario["wind"]["gust_power_N"] for m in gusts.missions}
+    assert forces == {3.45, 7.76} and all(m.scenario["wind"]["model"] == "gust" for m in gusts.missions)
+    by_gain: dict[float, list[tuple[str, float, int]]] = {}
+    for m in gusts.missions:
+        key = (m.preset, m.scenario["wind"]["gust_power_N"], m.replicate)
+        by_gain.setdefault(m.scenario["controller"]["integral_gain"], []).append((*key, m.seed))
+    assert sorted(by_gain) == [0.0, 2.0]
+    assert sorted(by_gain[0.0]) == sorted(by_gain[2.0])  # the same seeds with and without the integral
