@@ -45,7 +45,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from scipy.stats import binomtest
 
-from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
+from alight.campaign.store import BLOCK_TIME_COLUMN, ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
 from alight.campaign.summary import compute_per_simulated_s
 from alight.errors import InputError
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
@@ -279,7 +279,7 @@ def group_stats(missions: Sequence[Mission]) -> dict[str, Any]:
         "energy_compute_J": {"mean": _mean(m.values["energy_compute_J"] for m in flew)},
         "compute_ms_per_simulated_s": compute_per_simulated_s(
             (
-                {b: m.values[f"{b}_time_s"] for b in PIPELINE_BLOCKS},
+                {b: m.values[column] for b, column in BLOCK_TIME_COLUMN.items()},
                 m.values["simulated_time_s"],
                 m.values["wall_time_s"],
             )

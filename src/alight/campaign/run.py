@@ -25,6 +25,7 @@ import alight
 from alight.campaign.engines import MissionFn, MissionOutcome, MissionTask, function_spec, make_engine
 from alight.campaign.spec import Campaign, PlannedMission, load_campaign
 from alight.campaign.store import (
+    BLOCK_TIME_COLUMN,
     BLOCK_TIME_COLUMNS,
     CAMPAIGN_YAML,
     RESULT_COLUMNS,
@@ -36,7 +37,6 @@ from alight.campaign.store import (
 )
 from alight.campaign.summary import write_summary
 from alight.errors import ConfigError, InputError
-from alight.types import PIPELINE_BLOCKS
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
 _RESULT_KEYS = tuple(
@@ -142,7 +142,7 @@ def _row(m: PlannedMission, outcome: MissionOutcome, mission_dir: str) -> dict[s
         row.update({k: r.get(k) for k in _RESULT_KEYS})
         blocks = r.get("block_time_s")
         if isinstance(blocks, dict):
-            row.update({f"{b}_time_s": blocks.get(b) for b in PIPELINE_BLOCKS})
+            row.update({column: blocks.get(b) for b, column in BLOCK_TIME_COLUMN.items()})
         row["outcome"] = r["outcome"]
         row["success"] = bool(r.get("success", r["outcome"] == "landed"))
         row["wall_time_s"] = r.get("wall_time_s", outcome.wall_time_s)

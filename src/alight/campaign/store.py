@@ -32,8 +32,10 @@ ERROR_TXT = "error.txt"
 RESULT_JSON = "result.json"
 
 ID_COLUMNS = ("mission_id", "condition_id", "preset", "replicate", "seed")
-BLOCK_TIME_COLUMNS = tuple(f"{block}_time_s" for block in PIPELINE_BLOCKS)
-"""Wall time of each pipeline block in the mission (s), from ``result.json``'s ``block_time_s``."""
+BLOCK_TIME_COLUMN = {block: f"{block}_time_s" for block in PIPELINE_BLOCKS}
+"""The column of each pipeline block's wall time in the mission (s), from ``result.json``'s
+``block_time_s``."""
+BLOCK_TIME_COLUMNS = tuple(BLOCK_TIME_COLUMN.values())
 RESULT_COLUMNS = (
     "outcome",
     "success",

@@ -18,7 +18,15 @@ from typing import Any
 import numpy as np
 
 import alight
-from alight.campaign.store import RESULTS_CSV, SUMMARY_JSON, parse_float, read_lock, read_rows, write_json
+from alight.campaign.store import (
+    BLOCK_TIME_COLUMN,
+    RESULTS_CSV,
+    SUMMARY_JSON,
+    parse_float,
+    read_lock,
+    read_rows,
+    write_json,
+)
 from alight.errors import InputError
 from alight.types import PIPELINE_BLOCKS
 
@@ -88,7 +96,7 @@ def compute_per_simulated_s(
 
 
 def _row_compute(r: Mapping[str, str]) -> tuple[dict[str, float | None], float | None, float | None]:
-    times = {b: parse_float(r.get(f"{b}_time_s", "")) for b in PIPELINE_BLOCKS}
+    times = {b: parse_float(r.get(column, "")) for b, column in BLOCK_TIME_COLUMN.items()}
     return times, parse_float(r.get("simulated_time_s", "")), parse_float(r.get("wall_time_s", ""))
 
 

@@ -324,7 +324,7 @@ class Pipeline:
         target = self.target(t)
         t0 = time.perf_counter()
         self.status = self.mission.step(t, ego, target, self.range_m)
-        t0 = self.stats.charge("mission", t0)
+        self.stats.charge("mission", t0)
         if self.status.changed and self._set_mode is not None:
             self._set_mode(self.status.mode)  # a detector whose quality of service follows the phase
         if self._set_view_tilt is not None:  # ... and the obliquity of the view
