@@ -569,6 +569,8 @@ def test_compute_per_simulated_second_is_a_ratio_of_sums() -> None:
         (times(0.3, 0.02), 30.0, 2.0),
         ({**times(5.0, 5.0), "mission": None}, 10.0, 50.0),  # an older row without every block: left out
         (times(5.0, 5.0), None, 50.0),  # no simulated time: left out
+        ({**times(5.0, 5.0), "detector": float("nan")}, 10.0, 50.0),  # a damaged cell: left out
+        (times(5.0, 5.0), 10.0, float("inf")),
     ]
     got = compute_per_simulated_s(missions)
     assert got["detector"] == pytest.approx(1e3 * 0.4 / 40.0)

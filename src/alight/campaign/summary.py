@@ -11,6 +11,7 @@ n_flown`` (null when nothing flew).
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -76,13 +77,15 @@ def compute_per_simulated_s(
     """Milliseconds of wall time per simulated second of each pipeline block, and of the ``simulator``
     (the rest of the missions' wall time: physics, sensors, rendering), over ``missions`` given as
     ``(block -> seconds, simulated s, wall s)``. A ratio of sums, so long missions weigh as much as
-    their length; missions without the block times or the clocks are left out. None without any."""
+    their length; missions without the block times or the clocks, or with a non-finite one, are left
+    out. None without any."""
     blocks = dict.fromkeys(PIPELINE_BLOCKS, 0.0)
     sim_total = wall_total = 0.0
     for times, sim_s, wall_s in missions:
         values = [times.get(b) for b in PIPELINE_BLOCKS]
-        if sim_s is None or wall_s is None or sim_s <= 0 or any(v is None for v in values):
-            continue
+        clocks = [sim_s, wall_s, *values]
+        if any(v is None or not math.isfinite(v) for v in clocks) or sim_s <= 0:  # type: ignore[operator]
+            continue  # missing, or a damaged cell (NaN, inf): this mission says nothing about compute
         for b, v in zip(PIPELINE_BLOCKS, values, strict=True):
             blocks[b] += float(v)  # type: ignore[arg-type]
         sim_total += sim_s
