@@ -31,6 +31,53 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+MAX_PLATFORM_DECEL_MPS2 = 8.0
+"""Hardest braking of a road vehicle: about 0.8 g on dry asphalt (tyre friction ~0.8)."""
+MAX_PLATFORM_ACCEL_MPS2 = 4.0
+"""Hardest acceleration of the ground vehicles that carry pads (cars, pick-ups, tractors): 0-100 km/h in 7 s
+is 4 m/s^2."""
+
+PlatformDecel = Annotated[float, Field(gt=0, le=MAX_PLATFORM_DECEL_MPS2, allow_inf_nan=False)]
+PlatformAccel = Annotated[float, Field(gt=0, le=MAX_PLATFORM_ACCEL_MPS2, allow_inf_nan=False)]
+
+
+class BrakeStopSpec(_Strict):
+    """Brake hard to a stop at ``t_s``, stand for ``wait_s``, then drive on back to ``speed_mps``."""
+
+    t_s: NonNegFloat
+    """When braking starts (s)."""
+    decel_mps2: PlatformDecel = 6.0
+    """Braking deceleration (m/s^2), at most 8 (about 0.8 g, dry asphalt)."""
+    wait_s: NonNegFloat = 3.0
+    """Standstill before driving on (s)."""
+    accel_mps2: PlatformAccel = 2.0
+    """Acceleration back to the path speed (m/s^2), at most 4."""
+
+
+class RampSpec(_Strict):
+    """Accelerate or decelerate at ``t_s`` to a new speed, held from then on."""
+
+    t_s: NonNegFloat
+    """When the speed starts to change (s)."""
+    speed_mps: NonNegFloat
+    """The new speed along the path (m/s)."""
+    accel_mps2: PlatformAccel = 1.0
+    """Rate of the change, speeding up or slowing down (m/s^2), at most 4."""
+
+
+class SpeedProfileSpec(_Strict):
+    """One change of the platform's speed along its path: ``brake_stop`` or ``ramp``."""
+
+    brake_stop: BrakeStopSpec | None = None
+    ramp: RampSpec | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> SpeedProfileSpec:
+        if (self.brake_stop is None) == (self.ramp is None):
+            raise ValueError("speed_profile needs exactly one of brake_stop or ramp")
+        return self
+
+
 class PlatformSpec(_Strict):
     """The ground vehicle that carries the pad."""
 
@@ -47,6 +94,8 @@ class PlatformSpec(_Strict):
     tractor_row_length_m: PositiveFloat = 30.0
     tractor_turn_radius_m: PositiveFloat = 4.0
     random_max_curvature: PositiveFloat = 0.15
+    speed_profile: SpeedProfileSpec | None = None
+    """Changes of speed along the path (the path's geometry stays); None: ``speed_mps`` throughout."""
 
 
 class WindSpec(_Strict):
@@ -120,17 +169,135 @@ class CameraSpec(_Strict):
     """Coloured objects on the ground that are not the target (the false targets of a colour filter)."""
 
 
+Interval = tuple[FiniteFloat, FiniteFloat]
+
+
+def _check_intervals(name: str, intervals: list[Interval]) -> None:
+    for t0, t1 in intervals:
+        if not t1 > t0:
+            raise ValueError(f"{name} interval ({t0}, {t1}) must have t1 > t0")
+
+
+class NoiseBurstSpec(_Strict):
+    """Bursts of strong sensor noise (electrical interference, a failing cable)."""
+
+    prob: Probability = 0.0
+    """Probability that a burst starts at a frame."""
+    frames: Annotated[int, Field(ge=1, le=1000)] = 3
+    """Frames a burst lasts."""
+    sigma_dn: PositiveFloat = 40.0
+    """Standard deviation of the added noise (grey levels)."""
+
+
+class OcclusionSpec(_Strict):
+    """Part of the view hidden by something near the lens (an insect, a drop, a cable): a dark rectangle."""
+
+    prob: Probability = 0.0
+    """Probability per frame."""
+    size_fraction: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = 0.4
+    """Largest side of the rectangle as a fraction of the image's width and height; each side is drawn
+    uniformly between half of it and all of it."""
+    value_dn: Annotated[int, Field(ge=0, le=255)] = 20
+    """Grey level of the occluder (out of focus and unlit: dark)."""
+
+
+class ExposureSpikeSpec(_Strict):
+    """A frame exposed far too long or too short (auto-exposure catching the sun, a glint)."""
+
+    prob: Probability = 0.0
+    """Probability per frame."""
+    gain: Annotated[float, Field(gt=0, le=100, allow_inf_nan=False)] = 4.0
+    """Brightness factor of the spiked frame (> 1 over-, < 1 under-exposed), saturating at 255."""
+
+
+class FrozenFrameSpec(_Strict):
+    """The camera driver hands over its previous buffer again, stamped with the new capture time."""
+
+    prob: Probability = 0.0
+    """Probability per frame."""
+
+
+class StripesSpec(_Strict):
+    """A band of rows or columns of garbage (lost packets of a USB/MIPI/analogue link)."""
+
+    prob: Probability = 0.0
+    """Probability per frame."""
+    max_lines: Annotated[int, Field(ge=1)] = 60
+    """Largest width of the band (px); each band is drawn uniformly from 1 to this, rows or columns with
+    equal probability."""
+
+
+class CorruptionSpec(_Strict):
+    """Frame corruptions of the vision presets, each drawn independently per frame, applied in this order:
+    frozen (replaces the frame), exposure, noise, occlusion, stripes."""
+
+    noise: NoiseBurstSpec = Field(default_factory=NoiseBurstSpec)
+    occlusion: OcclusionSpec = Field(default_factory=OcclusionSpec)
+    exposure: ExposureSpikeSpec = Field(default_factory=ExposureSpikeSpec)
+    frozen: FrozenFrameSpec = Field(default_factory=FrozenFrameSpec)
+    stripes: StripesSpec = Field(default_factory=StripesSpec)
+
+    def active(self) -> list[str]:
+        """Names of the corruptions with a non-zero probability."""
+        return [
+            n for n in ("noise", "occlusion", "exposure", "frozen", "stripes") if getattr(self, n).prob > 0
+        ]
+
+
+class BiasStepSpec(_Strict):
+    """A step of an IMU bias at ``t_s`` (a temperature jump, a knock), kept from then on."""
+
+    t_s: NonNegFloat
+    """When the bias steps (s)."""
+    delta: tuple[FiniteFloat, FiniteFloat, FiniteFloat]
+    """The step, in the IMU's (body) axes: m/s^2 for the accelerometer, rad/s for the gyroscope."""
+
+
+class OdometryJumpSpec(_Strict):
+    """The VIO re-localises at ``t_s``: its position jumps by ``offset_m`` and stays shifted."""
+
+    t_s: NonNegFloat
+    offset_m: tuple[FiniteFloat, FiniteFloat, FiniteFloat]
+    """The jump of the reported position, in W (m)."""
+
+
 class FaultSpec(_Strict):
+    """Sensor and perception faults, each injected where it happens on a real vehicle (``docs/faults.md``).
+    Every key acts on every preset, or the mission is refused with one line."""
+
     dropout_prob: Probability = 0.0
-    """Extra probability that a detection is lost."""
-    blackouts: list[tuple[FiniteFloat, FiniteFloat]] = Field(default_factory=list)
-    """Intervals [t0, t1] (s) with no detections at all."""
+    """Extra probability that a frame is lost (added to ``perception.dropout_prob``): a camera frame is
+    not delivered; the ground-truth sensor reports nothing."""
+    blackouts: list[Interval] = Field(default_factory=list)
+    """Intervals [t0, t1] (s) with a blacked-out camera: dark frames; the ground-truth sensor reports
+    nothing."""
+    latency_s: NonNegFloat = 0.0
+    """Extra mean detection latency (s), added to ``perception.latency_s``."""
+    latency_jitter_s: NonNegFloat = 0.0
+    """Half-width of the uniform jitter of each frame's latency (s); frames are still delivered in
+    capture order."""
+    corruption: CorruptionSpec = Field(default_factory=CorruptionSpec)
+    """Corrupted camera frames (vision presets; the ground-truth preset takes only ``frozen``)."""
+    accel_bias_steps: list[BiasStepSpec] = Field(default_factory=list)
+    """Accelerometer bias steps: ``{t_s, delta}`` with ``delta`` in m/s^2, body axes."""
+    gyro_bias_steps: list[BiasStepSpec] = Field(default_factory=list)
+    """Gyroscope bias steps: ``{t_s, delta}`` with ``delta`` in rad/s, body axes."""
+    odometry_jumps: list[OdometryJumpSpec] = Field(default_factory=list)
+    """VIO re-localisations: ``{t_s, offset_m}``."""
+    odometry_dropouts: list[Interval] = Field(default_factory=list)
+    """Intervals [t0, t1] (s) without odometry messages."""
+    range_dropout_prob: Probability = 0.0
+    """Probability that a range reading is invalid (no return)."""
+    range_dropouts: list[Interval] = Field(default_factory=list)
+    """Intervals [t0, t1] (s) of invalid range readings."""
+    range_spurious_prob: Probability = 0.0
+    """Probability that a range reading is a spurious return, uniform over the sensor's span."""
 
     @model_validator(mode="after")
     def _ordered(self) -> FaultSpec:
-        for t0, t1 in self.blackouts:
-            if not t1 > t0:
-                raise ValueError(f"blackout interval ({t0}, {t1}) must have t1 > t0")
+        _check_intervals("blackout", self.blackouts)
+        _check_intervals("odometry_dropouts", self.odometry_dropouts)
+        _check_intervals("range_dropouts", self.range_dropouts)
         return self
 
 

@@ -6,7 +6,9 @@ planner at the planner's rate (50 Hz), perception at the scenario's rate with it
 
 The runner is the only place that sees both the truth and the pipeline. Randomness: one
 ``SeedSequence`` from the scenario seed, one child per component, so changing one component's
-settings does not change another's random numbers.
+settings does not change another's random numbers. Sensor and perception faults (``sim/faults.py``,
+``docs/faults.md``) act on the sensor data on their way into the pipeline and draw from a child of
+their own, so a mission without faults flies exactly as before they existed.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from alight.evaluation.physics import (
 )
 from alight.mission.presets import build_preset
 from alight.scenario import Scenario
+from alight.sim.faults import Faults, speed_profile
 from alight.sim.platform import Platform, PlatformConfig
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params
 from alight.sim.render import Renderer, RenderOptions
@@ -105,6 +108,7 @@ def _place_platform(s: Scenario, rng: np.random.Generator) -> Platform:
             tractor_row_length_m=spec.tractor_row_length_m,
             tractor_turn_radius_m=spec.tractor_turn_radius_m,
             random_max_curvature=spec.random_max_curvature,
+            speed_profile=speed_profile(spec.speed_profile, spec.speed_mps),
         )
         platform = Platform(config, np.random.default_rng(rng.integers(2**63)))
         if spec.start_xy is not None and spec.heading_rad is not None:
@@ -140,8 +144,8 @@ def run_mission(
     sees every camera frame with its detections (for replays); it must not modify them."""
     wall0 = time.perf_counter()
     s = scenario
-    seeds = np.random.SeedSequence(s.seed).spawn(8)
-    rngs = [np.random.default_rng(c) for c in seeds]
+    seeds = np.random.SeedSequence(s.seed).spawn(9)
+    rngs = [np.random.default_rng(c) for c in seeds[:8]]
     rng_place, rng_render, rng_wind, rng_imu, rng_odo, rng_range, rng_perc, rng_pipe = rngs
 
     platform = _place_platform(s, rng_place)
@@ -173,6 +177,17 @@ def run_mission(
         preset.mount.p_BC,
         rng_perc,
     )
+    # The ninth child of the seed: faults never change the random numbers of the components above.
+    faults = Faults(
+        s.faults,
+        seeds[8],
+        camera=preset.uses_camera,
+        latency_s=pc.latency_s,
+        extra_dropout_prob=pc.dropout_prob,
+        range_span_m=(rangefinder.config.min_range_m, rangefinder.config.max_range_m),
+        tick_dt=TICK_DT,
+    )
+    faults.check_preset(s.preset, preset.uses_camera)
 
     renderer = None
     if preset.uses_camera:
@@ -213,7 +228,7 @@ def run_mission(
     every_log = round(1.0 / (50.0 * TICK_DT))
     perception_period = 1.0 / pc.rate_hz
     next_capture = 0.0
-    pending: deque[tuple[float, float, list]] = deque()  # (delivery time, capture time, observations)
+    pending: deque[tuple[float, float, object]] = deque()  # (delivery time, capture time, frame)
 
     log = MissionLog() if record else None
     cmd = None
@@ -259,6 +274,7 @@ def run_mission(
                 inputs[IN_F_EXT : IN_F_EXT + 3] = f_wind
                 inputs[IN_V_WIND : IN_V_WIND + 3] = v_air
             m = min(every_control - (k - 1) % every_control, n_ticks + 1 - k)
+            m = faults.before_imu_batch(k, m, imu)  # an IMU bias step due now; a batch ends before the next
             imu_bias, imu_noise, imu_scale = imu.kernel_inputs_many(m)
             batch_xs, batch_imu, batch_n = tick_batch(
                 x, inputs, sim_params, ll_params, imu_bias, imu_noise, imu_scale, PHYSICS_DT, n_sub, gear,
@@ -300,12 +316,13 @@ def run_mission(
         # -- sensors into the pipeline ------------------------------------------------------------------
         pipeline.on_imu(t, imu_out[0:3], imu_out[3:6])
         if k % every_odometry == 0:
-            odo = odometry.measure(t, p_WB, v_WB, q_WB, w_WB_B)
-            pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB)
+            odo = faults.odometry(odometry.measure(t, p_WB, v_WB, q_WB, w_WB_B))
+            if odo is not None:
+                pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB)
         if not pipeline.ego_estimator.initialized:
             continue
         if k % every_range == 0:
-            r = rangefinder.measure_at(p_WB, q_WB, truth_p[k], float(truths.yaw[k]), pad)
+            r = faults.range(t, rangefinder.measure_at(p_WB, q_WB, truth_p[k], float(truths.yaw[k]), pad))
             pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
         if t + 1e-9 >= next_capture:
             # An image (or the truth sensor's report) is taken now and reaches the pipeline after the
@@ -316,7 +333,9 @@ def run_mission(
                 frame: object = renderer.render(p_WC, R_WC, (truth_p[k], float(truths.yaw[k])), w_WB_B, t_s=t)
             else:
                 frame = truth_perception.observe(t, p_WB, R_WB, truth_p[k])
-            pending.append((t + pc.latency_s, t, frame))
+            frame = faults.frame(t, frame)  # lost, dark, corrupted, frozen or as captured
+            if frame is not None:
+                pending.append((faults.delivery_time(t), t, frame))
             next_capture += perception_period
         while pending and pending[0][0] <= t + 1e-9:
             _, t_cap, frame = pending.popleft()

@@ -24,6 +24,12 @@ Paths (each starts at ``start_xy_m`` with heading ``start_heading``):
   curvature is held constant over 0.25 m pieces (arcs, so the geometry is exact); the path is drawn for
   ``random_length_m`` and goes straight on after that.
 
+Speed profiles (:class:`SpeedProfile`): the speed along the path may change with a piecewise-constant
+tangential acceleration ``a_t`` (a hard brake to a stop and driving on, or a ramp to a new speed). The
+arc length is then integrated in closed form, ``s = s_i + v_i (t - t_i) + a_i (t - t_i)^2 / 2`` in
+phase i, so the geometry is the same path and only the timing along it changes; the velocity is
+``v(t)`` along the tangent and the acceleration gains the tangential term ``a_t (cos yaw, sin yaw, 0)``.
+
 The arc-type paths are tables of circular arcs evaluated in closed form by a numba kernel; use
 :meth:`Platform.states` (vectorised) when many times are needed at once.
 """
@@ -45,6 +51,76 @@ PATH_KINDS: tuple[str, ...] = ("straight", "circle", "figure8", "tractor", "rand
 
 _RANDOM_PIECE_M = 0.25
 _RANDOM_KNOT_STD = 0.6
+
+
+@dataclass(frozen=True)
+class SpeedProfile:
+    """Speed along the path as phases of constant tangential acceleration.
+
+    The platform starts at ``PlatformConfig.speed_mps`` with no acceleration; from ``t_s[i]`` on its
+    tangential acceleration is ``accel_mps2[i]`` (m/s^2), until the next phase. The constructors below
+    build phases that never make the speed negative.
+    """
+
+    t_s: tuple[float, ...]
+    """Start of each phase (s), increasing."""
+    accel_mps2: tuple[float, ...]
+    """Tangential acceleration in each phase (m/s^2)."""
+
+    def __post_init__(self) -> None:
+        if len(self.t_s) != len(self.accel_mps2) or not self.t_s:
+            raise ValueError("a speed profile needs one acceleration per phase start, at least one phase")
+        if any(not math.isfinite(x) for x in (*self.t_s, *self.accel_mps2)):
+            raise ValueError("speed profile times and accelerations must be finite")
+        if any(b <= a for a, b in zip(self.t_s, self.t_s[1:], strict=False)) or self.t_s[0] < 0.0:
+            raise ValueError(f"speed profile phases must start at increasing times >= 0, got {self.t_s}")
+
+    @classmethod
+    def brake_stop(
+        cls, speed_mps: float, t_s: float, decel_mps2: float, wait_s: float, accel_mps2: float
+    ) -> SpeedProfile:
+        """Brake at ``t_s`` from ``speed_mps`` to a stop at ``decel_mps2``, stand ``wait_s``, then drive on
+        back to ``speed_mps`` at ``accel_mps2``."""
+        if not (decel_mps2 > 0.0 and accel_mps2 > 0.0 and wait_s >= 0.0 and speed_mps >= 0.0):
+            raise ValueError("brake_stop needs decel_mps2, accel_mps2 > 0 and wait_s, speed_mps >= 0")
+        if speed_mps == 0.0:
+            return cls((t_s,), (0.0,))  # a parked platform has nothing to brake
+        t_stop = t_s + speed_mps / decel_mps2
+        t_go = t_stop + wait_s
+        phases = [(t_s, -decel_mps2)]
+        if wait_s > 0.0:
+            phases.append((t_stop, 0.0))
+        phases += [(t_go, accel_mps2), (t_go + speed_mps / accel_mps2, 0.0)]
+        return cls(tuple(p[0] for p in phases), tuple(p[1] for p in phases))
+
+    @classmethod
+    def ramp(cls, speed_mps: float, t_s: float, new_speed_mps: float, accel_mps2: float) -> SpeedProfile:
+        """From ``speed_mps``, change speed at ``t_s`` to ``new_speed_mps`` at ``accel_mps2`` (either way)."""
+        if not (accel_mps2 > 0.0 and new_speed_mps >= 0.0):
+            raise ValueError("ramp needs accel_mps2 > 0 and new_speed_mps >= 0")
+        dv = new_speed_mps - speed_mps
+        if dv == 0.0:
+            return cls((t_s,), (0.0,))
+        return cls((t_s, t_s + abs(dv) / accel_mps2), (math.copysign(accel_mps2, dv), 0.0))
+
+    def kinematics(self, speed_mps: float, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Arc length s (m), speed v (m/s) and tangential acceleration a_t (m/s^2) at the times t (s),
+        each shape (N,), starting at ``speed_mps`` at t = 0."""
+        ts = np.concatenate([[0.0], np.asarray(self.t_s, dtype=np.float64)])
+        acc = np.concatenate([[0.0], np.asarray(self.accel_mps2, dtype=np.float64)])
+        if self.t_s[0] == 0.0:  # a phase starting at 0 replaces the constant-speed start
+            ts, acc = ts[1:], acc[1:]
+        dts = np.diff(ts)
+        v_at = speed_mps + np.concatenate([[0.0], np.cumsum(acc[:-1] * dts)])
+        s_at = np.concatenate([[0.0], np.cumsum(v_at[:-1] * dts + 0.5 * acc[:-1] * dts**2)])
+        tt = np.asarray(t, dtype=np.float64)
+        i = np.clip(np.searchsorted(ts, tt, side="right") - 1, 0, ts.size - 1)
+        dt = tt - ts[i]
+        v = v_at[i] + acc[i] * dt
+        # the constructors end each braking phase exactly at v = 0; rounding must not make it negative
+        v = np.maximum(v, 0.0)
+        s = s_at[i] + v_at[i] * dt + 0.5 * acc[i] * dt**2
+        return s, v, np.where(v > 0.0, acc[i], np.maximum(acc[i], 0.0))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -79,6 +155,8 @@ class PlatformConfig:
     """Distance between the random curvature's knots (m)."""
     random_length_m: float = 5000.0
     """Length of the random path drawn at construction (m); it continues straight beyond."""
+    speed_profile: SpeedProfile | None = None
+    """Changes of speed along the path; None: ``speed_mps`` throughout."""
 
     def __post_init__(self) -> None:
         if self.path not in PATH_KINDS:
@@ -414,11 +492,17 @@ class Platform:
 
     # ----------------------------------------------------------------------------------------------
 
-    def _arclength(self, t: FloatArray | float) -> FloatArray | float:
-        return self.config.speed_mps * t
+    def _along(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Arc length (m), speed (m/s) and tangential acceleration (m/s^2) at the times t (s)."""
+        v = self.config.speed_mps
+        if self.config.speed_profile is None:
+            return v * t, np.full(t.shape, v), np.zeros(t.shape)
+        return self.config.speed_profile.kinematics(v, t)
 
     def state(self, t: float) -> PlatformTruth:
         """The platform at time t (s)."""
+        if self.config.speed_profile is not None:
+            return self.states(np.array([t])).at(0)
         v = self.config.speed_mps
         x, y, h, k = _eval_path(v * t, self._seg, self._geo)
         c, s = math.cos(h), math.sin(h)
@@ -436,6 +520,8 @@ class Platform:
         """The platform at the times ts (s), shape (N,); vectorised (about 1 us per time for the
         figure-8, less for the others)."""
         t = np.ascontiguousarray(ts, dtype=np.float64).reshape(-1)
+        if self.config.speed_profile is not None:
+            return self._states_profiled(t)
         v = self.config.speed_mps
         g = _eval_path_many(v * t, self._seg, self._geo)
         n = t.shape[0]
@@ -454,9 +540,30 @@ class Platform:
         yaw = (g[:, 2] + math.pi) % (2 * math.pi) - math.pi
         return PlatformStates(t.copy(), p, vel, acc, yaw, v * g[:, 3])
 
+    def _states_profiled(self, t: FloatArray) -> PlatformStates:
+        # The same path evaluated at the integrated arc length; tangential plus centripetal acceleration.
+        s_m, v, a_t = self._along(t)
+        g = _eval_path_many(np.ascontiguousarray(s_m), self._seg, self._geo)
+        n = t.shape[0]
+        c, s = np.cos(g[:, 2]), np.sin(g[:, 2])
+        ac = v * v * g[:, 3]
+        p = np.empty((n, 3))
+        p[:, 0] = g[:, 0]
+        p[:, 1] = g[:, 1]
+        p[:, 2] = self.config.pad_height_m
+        vel = np.zeros((n, 3))
+        vel[:, 0] = v * c
+        vel[:, 1] = v * s
+        acc = np.zeros((n, 3))
+        acc[:, 0] = a_t * c - ac * s
+        acc[:, 1] = a_t * s + ac * c
+        yaw = (g[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        return PlatformStates(t.copy(), p, vel, acc, yaw, v * g[:, 3])
+
     def curvature(self, t: float) -> float:
         """Signed path curvature at time t (1/m), positive turning left."""
-        return float(_eval_path(self.config.speed_mps * t, self._seg, self._geo)[3])
+        s_m = float(self._along(np.array([float(t)]))[0][0])
+        return float(_eval_path(s_m, self._seg, self._geo)[3])
 
     def pad_corners_W(self, t: float) -> FloatArray:
         """Pad corners in W at time t (m), shape (4, 3), counter-clockwise from (+x, +y) of P."""

@@ -238,6 +238,12 @@ class Imu:
         out = _imu_sample(_f64(a_WB), _f64(q_WB), _f64(w_WB_B), self._bias, self._stream.row(), self._scale)
         return out[0:3], out[3:6]
 
+    def step_bias(self, delta: FloatArray) -> None:
+        """Add a step to the biases: ``delta`` (6,), accelerometer (m/s^2) then gyroscope (rad/s), in B
+        (a fault: a temperature jump or a knock). In place, so a caller of :meth:`kernel_inputs_many`
+        holding the bias vector sees it."""
+        self._bias += np.asarray(delta, dtype=np.float64).reshape(6)
+
     def kernel_inputs(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """For a caller that samples the IMU inside its own compiled loop with :func:`imu_sample_kernel`:
         the bias vector (6,) that the kernel steps in place, the next noise row (12,) and the scales
