@@ -294,3 +294,15 @@ def test_falanga2017_camera_losing_every_frame_never_detects() -> None:
     assert r["detections"] == 0 and r["time_first_detection_s"] is None
     assert r["outcome"] != "landed" and r["frames_processed"] == 0
     assert not math.isnan(r["simulated_time_s"])
+
+
+@pytest.mark.slow
+def test_falanga2017_blackout_during_the_descent_goes_around_then_lands() -> None:
+    # The descent starts at 12.8 s from 2.5 m at 0.4 m/s: the camera goes dark at 13.5 s, well above the
+    # commit height (0.6 m), for 4 s (longer than the 3 s lost timeout).
+    r = _falanga({"blackouts": [[13.5, 17.5]]})
+    modes = [h["mode"] for h in r["mode_history"]]
+    i_ga = modes.index("go_around")
+    assert modes[i_ga - 1] == "land" and 13.5 < r["mode_history"][i_ga]["t"] < 17.5
+    assert r["go_arounds"] >= 1 and "land" in modes[i_ga + 1 :]
+    assert r["outcome"] == "landed" and r["time_to_land_s"] > 17.5
