@@ -202,8 +202,8 @@ def _range_dropouts(base: Received, got: Received, camera: bool) -> None:
 
 
 def _range_spurious(base: Received, got: Received, camera: bool) -> None:
-    b = dict(base.ranges)
-    diffs = [abs(r - b[t]) for t, r in got.ranges if r is not None and b.get(t) is not None]
+    b = {t: r for t, r in base.ranges if r is not None}
+    diffs = [abs(r - b[t]) for t, r in got.ranges if r is not None and t in b]
     assert len(diffs) > 100 and np.mean(np.array(diffs) > 0.2) > 0.8
 
 
