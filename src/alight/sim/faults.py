@@ -129,8 +129,8 @@ class Faults:
             image_only = [n for n in self._corrupt if n != "frozen"]
             if image_only:
                 raise ConfigError(
-                    f"faults.corruption needs a camera preset: {', '.join(image_only)} corrupt an image, "
-                    f"and preset '{preset}' has none (only 'frozen' applies to it)"
+                    f"faults.corruption needs a camera preset: preset '{preset}' has no image for "
+                    f"{', '.join(image_only)} to corrupt (only 'frozen' applies to it)"
                 )
 
     # -- IMU -----------------------------------------------------------------------------------------
