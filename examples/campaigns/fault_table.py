@@ -3,11 +3,10 @@
     python examples/campaigns/fault_table.py runs/faults
 
 A class is named by the fault keys its condition sets (``platform.speed_profile`` by its kind). Outcomes:
-``landed``; ``safe abort`` = aborted, or still flying at the end without having touched anything
-(timeout: the vehicle never touched anything but, possibly, the pad it landed on is not counted here:
-a contact is always judged landed or crashed); ``crash`` = crashed; ``refused`` = an ``error`` row whose
-message says the fault cannot act on the preset (``faults.corruption needs a camera preset``); other
-errors are counted as ``error``.
+``landed``; ``safe abort`` = ``aborted``, or ``timeout`` (still flying at the end): the vehicle touched
+nothing (any contact is judged at once, ``landed`` or ``crashed``); ``crash`` = ``crashed``; ``refused`` =
+an ``error`` row whose message says the fault cannot act on the preset (``faults.corruption needs a
+camera preset``); any other error is counted under ``error``.
 """
 
 from __future__ import annotations
