@@ -56,8 +56,10 @@ def table(out_dir: Path) -> str:
             outcome = "crash"
         elif outcome == "error":
             outcome = "refused" if "needs a camera preset" in r.get("error", "") else "error"
+        elif outcome != "landed":
+            outcome = "other"  # an outcome this table does not know: shown, never dropped
         counts.setdefault((r["condition_id"], r["preset"]), Counter())[outcome] += 1
-    cols = ["landed", "safe abort", "crash", "refused", "error"]
+    cols = ["landed", "safe abort", "crash", "refused", "error", "other"]
     lines = [
         "| condition | class | preset | n | " + " | ".join(cols) + " |",
         "|---|---|---|---|" + "---|" * len(cols),
