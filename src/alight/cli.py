@@ -6,6 +6,7 @@
     alight campaign CAMPAIGN.yaml [--out DIR] [--engine local|dask] [--scheduler ADDR] [--workers N]
                     [--no-progress] [--limit N]
     alight report DIR
+    alight replay LOG --out DIR [--mapping FILE] [--scenario FILE]
 
 Exit status 0 on success, 2 on bad input with one line on stderr that says what is wrong and where.
 """
@@ -120,6 +121,20 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from alight.interfaces.replay import replay_to_dir
+
+    out = Path(args.out)
+    run = replay_to_dir(args.log, out, mapping=args.mapping, scenario=args.scenario)
+    r = run.result
+    counts = ", ".join(f"{k} {v}" for k, v in r["messages"].items())
+    print(
+        f"{r['format']} {r['source']}: {r['duration_s']:.1f} s replayed through {r['preset']} ({counts}); "
+        f"{r['frames']} frames, {r['detections']} detections -> {out / 'report.html'}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="alight", description="Autonomous landing on moving platforms.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
@@ -160,6 +175,15 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="(re)write a campaign's summary.json and report.html")
     rep.add_argument("dir", help="campaign output directory")
     rep.set_defaults(func=_cmd_report)
+
+    rpl = sub.add_parser(
+        "replay", help="run perception and estimation on a recorded flight (PX4 ULog, ROS 1/2 bag, MCAP)"
+    )
+    rpl.add_argument("log", help=".ulg, .bag, a ROS 2 bag directory, .db3 or .mcap")
+    rpl.add_argument("--out", required=True, help="output directory")
+    rpl.add_argument("--mapping", default=None, help="topic mapping YAML (default: the packaged one)")
+    rpl.add_argument("--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)")
+    rpl.set_defaults(func=_cmd_replay)
     return parser
 
 
