@@ -82,7 +82,8 @@ class RangeSample:
 @dataclass(frozen=True)
 class ImageSample:
     t: float
-    """when the frame reaches the Pipeline (s): capture time plus the mapping's ``image_latency_s``"""
+    """when the frame reaches the Pipeline (s): the bag's receive time (the capture time where that is
+    earlier or more than 1 s later), plus the mapping's ``image_latency_s``"""
     t_capture: float
     """capture time (s)"""
     image: NDArray[np.uint8]
@@ -227,8 +228,12 @@ class Recording:
                 self.bad_frames += 1
                 continue
             t_cap = _stamp_s(msg, t_ns, self._origin_ns)
+            # The frame reaches the Pipeline when the bag received it (after the camera's processing),
+            # unless the two clocks disagree by more than a second (a driver stamping on its own clock).
+            t_rx = (int(t_ns) - self._origin_ns) * 1e-9
+            t_in = t_rx if t_cap <= t_rx <= t_cap + 1.0 else t_cap
             self.counts[Stream.IMAGE.value] = self.counts.get(Stream.IMAGE.value, 0) + 1
-            yield ImageSample(t_cap + self._latency_s, t_cap, image)
+            yield ImageSample(t_in + self._latency_s, t_cap, image)
 
     def close(self) -> None:
         if self._reader is not None:
