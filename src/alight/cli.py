@@ -1,6 +1,6 @@
 """The ``alight`` command.
 
-    alight fly SCENARIO.yaml --out DIR [--seed N]
+    alight fly SCENARIO.yaml --out DIR [--seed N] [--replay] [--mcap] [--bag PATH [--bag-storage S]]
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
     alight campaign CAMPAIGN.yaml [--out DIR] [--engine local|dask] [--scheduler ADDR] [--workers N]
@@ -16,7 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from alight.errors import AlightError
 
@@ -31,7 +33,15 @@ def _cmd_fly(args: argparse.Namespace) -> int:
             raise AlightError(f"--seed must be >= 0, got {args.seed}")
         scenario = scenario.with_seed(args.seed)
     out = Path(args.out)
-    run = fly_to_dir(scenario, out, replay=args.replay)
+    exports = _fly_exports(args, scenario, out)
+    try:
+        run = fly_to_dir(scenario, out, replay=args.replay, frame_sinks=[e for e, _ in exports])
+    except BaseException:
+        for e, _ in exports:
+            e.close()
+        raise
+    for _, finish in exports:
+        finish(run)
     r = run.result
     err = r["touchdown_error_m"]
     err_txt = "-" if err is None else f"{err:.3f} m"
@@ -40,6 +50,25 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         f"{r['simulated_time_s']:.1f} s simulated in {r['wall_time_s']:.2f} s -> {out / 'report.html'}"
     )
     return 0
+
+
+def _fly_exports(args: argparse.Namespace, scenario: Any, out: Path) -> list[tuple[Any, Callable[[Any], object]]]:
+    """The exporters ``alight fly --mcap`` / ``--bag PATH`` asked for: (frame sink with a ``close``,
+    finish(run))."""
+    exports: list[tuple[Any, Callable[[Any], object]]] = []
+    if args.mcap:
+        from alight.interfaces.mcap_export import MCAP_FILE, McapExporter
+
+        out.mkdir(parents=True, exist_ok=True)
+        mcap = McapExporter(out / MCAP_FILE)
+        exports.append((mcap, lambda run: mcap.finish(run.log, run.mode_history)))
+    if args.bag is not None:
+        from alight.interfaces.rosbag_writer import BagRecorder
+
+        latency = scenario.perception.latency_s
+        bag = BagRecorder(args.bag, storage=args.bag_storage, latency_s=latency)
+        exports.append((bag, lambda run: bag.finish(run.log)))
+    return exports
 
 
 def _cmd_detect(args: argparse.Namespace) -> int:
@@ -146,6 +175,11 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     fly.add_argument(
         "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
+    )
+    fly.add_argument("--mcap", action="store_true", help="also write flight.mcap (Foxglove schemas)")
+    fly.add_argument("--bag", default=None, metavar="PATH", help="also write the flight as a ROS 2 bag at PATH")
+    fly.add_argument(
+        "--bag-storage", choices=("mcap", "sqlite3"), default="mcap", help="storage of --bag (default mcap)"
     )
     fly.set_defaults(func=_cmd_fly)
 
