@@ -52,7 +52,9 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     return 0
 
 
-def _fly_exports(args: argparse.Namespace, scenario: Any, out: Path) -> list[tuple[Any, Callable[[Any], object]]]:
+def _fly_exports(
+    args: argparse.Namespace, scenario: Any, out: Path
+) -> list[tuple[Any, Callable[[Any], object]]]:
     """The exporters ``alight fly --mcap`` / ``--bag PATH`` asked for: (frame sink with a ``close``,
     finish(run))."""
     exports: list[tuple[Any, Callable[[Any], object]]] = []
@@ -177,7 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
     )
     fly.add_argument("--mcap", action="store_true", help="also write flight.mcap (Foxglove schemas)")
-    fly.add_argument("--bag", default=None, metavar="PATH", help="also write the flight as a ROS 2 bag at PATH")
+    fly.add_argument(
+        "--bag", default=None, metavar="PATH", help="also write the flight as a ROS 2 bag at PATH"
+    )
     fly.add_argument(
         "--bag-storage", choices=("mcap", "sqlite3"), default="mcap", help="storage of --bag (default mcap)"
     )
@@ -216,7 +220,9 @@ def build_parser() -> argparse.ArgumentParser:
     rpl.add_argument("log", help=".ulg, .bag, a ROS 2 bag directory, .db3 or .mcap")
     rpl.add_argument("--out", required=True, help="output directory")
     rpl.add_argument("--mapping", default=None, help="topic mapping YAML (default: the packaged one)")
-    rpl.add_argument("--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)")
+    rpl.add_argument(
+        "--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)"
+    )
     rpl.set_defaults(func=_cmd_replay)
     return parser
 

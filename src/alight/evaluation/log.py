@@ -446,7 +446,8 @@ def _group_columns(names: list[str]) -> list[tuple[str, list[int]]]:
     """Columns of the CSV (after ``t``, before ``mode``) grouped back into channels.
 
     Standard channels are matched by their known column names; any other run of columns sharing a
-    base name with suffixes ``_x,_y,_z`` (``_x.._w`` for a ``q_`` quaternion) or ``_0.._k`` forms one extra channel, anything else a scalar.
+    base name with suffixes ``_x,_y,_z`` (``_x.._w`` for a ``q_`` quaternion) or ``_0.._k`` forms one
+    extra channel, anything else a scalar.
     """
     groups: list[tuple[str, list[int]]] = []
     k = 1  # numeric column index; 0 is t

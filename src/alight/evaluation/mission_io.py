@@ -68,7 +68,7 @@ def fly_to_dir(
     except OSError as err:
         raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
     recorder = FrameRecorder() if replay else None
-    sinks = [*([recorder] if recorder is not None else []), *frame_sinks]
+    sinks: list[FrameSink] = [*([recorder] if recorder is not None else []), *frame_sinks]
     run = run_mission(scenario, record=True, frame_sink=_fan_out(sinks))
     if run.log is None:  # record=True always logs; this guards a future change of run_mission
         raise RuntimeError("run_mission returned no log")

@@ -97,7 +97,7 @@ class McapExporter:
         self.counts: dict[str, int] = {}
         self._schema: dict[str, int] = {}
         self._channel: dict[str, int] = {}
-        self._classes = {
+        self._classes: dict[str, Any] = {
             "pose": PoseInFrame,
             "tf": FrameTransforms,
             "image": CompressedImage,
@@ -162,7 +162,12 @@ class McapExporter:
             for u, v in px:
                 pt = pts.points.add()
                 pt.x, pt.y = float(u), float(v)
-            pts.outline_color.r, pts.outline_color.g, pts.outline_color.b, pts.outline_color.a = 0.17, 0.63, 0.17, 1.0
+            pts.outline_color.r, pts.outline_color.g, pts.outline_color.b, pts.outline_color.a = (
+                0.17,
+                0.63,
+                0.17,
+                1.0,
+            )
             pts.thickness = 3.0
             text = ann.texts.add()
             self._stamp(text, t_capture)
@@ -183,13 +188,19 @@ class McapExporter:
             self.close()
         return self.path
 
-    def _write_log(self, log: Mapping[str, np.ndarray], mode_history: Sequence[tuple[float, str, str]]) -> None:
+    def _write_log(
+        self, log: Mapping[str, np.ndarray], mode_history: Sequence[tuple[float, str, str]]
+    ) -> None:
         t = np.asarray(log["t"], dtype=np.float64)
         n = t.shape[0]
 
         def ch(name: str, width: int) -> NDArray[np.float64]:
             a = log.get(name)
-            return np.full((n, width), np.nan) if a is None else np.asarray(a, dtype=np.float64).reshape(n, width)
+            return (
+                np.full((n, width), np.nan)
+                if a is None
+                else np.asarray(a, dtype=np.float64).reshape(n, width)
+            )
 
         p_WB, q_WB, p_est, q_est = ch("p_WB", 3), ch("q_WB", 4), ch("p_WB_est", 3), ch("q_WB_est", 4)
         p_WP, v_WP, p_WP_est, v_WP_est = ch("p_WP", 3), ch("v_WP", 3), ch("p_WP_est", 3), ch("v_WP_est", 3)
@@ -219,7 +230,11 @@ class McapExporter:
         t_det = np.asarray(log.get("t_det", np.zeros(0)), dtype=np.float64).reshape(-1)
         p_meas = np.asarray(log.get("p_WP_meas", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
         for k in np.argsort(t_det, kind="stable"):
-            self._put(CH_MEASUREMENTS, self._pose(float(t_det[k]), p_meas[k], np.array([0.0, 0.0, 0.0, 1.0])), float(t_det[k]))
+            self._put(
+                CH_MEASUREMENTS,
+                self._pose(float(t_det[k]), p_meas[k], np.array([0.0, 0.0, 0.0, 1.0])),
+                float(t_det[k]),
+            )
 
         log_cls = self._classes["log"]
         for tm, mode, reason in mode_history:
@@ -250,7 +265,9 @@ class McapExporter:
             "properties": {"t": {"type": "number"}, "mode": {"type": "string"}}
             | {c: {"type": ["number", "null"]} for c, _ in cols},
         }
-        sid = self._w.register_schema(name="alight.Series", encoding="jsonschema", data=json.dumps(schema).encode())
+        sid = self._w.register_schema(
+            name="alight.Series", encoding="jsonschema", data=json.dumps(schema).encode()
+        )
         cid = self._w.register_channel(topic=CH_SERIES, message_encoding="json", schema_id=sid)
         modes = np.asarray(log.get("mode", np.full(n, "", dtype=np.str_))).astype(str)
         for i in range(n):
@@ -266,7 +283,7 @@ class McapExporter:
         if not self._closed:
             self._closed = True
             try:
-                self._w.finish()
+                self._w.finish()  # type: ignore[no-untyped-call]
             finally:
                 self._file.close()
 

@@ -26,7 +26,7 @@ import numpy as np
 
 import alight
 from alight.airframe import DEFAULT_AIRFRAME
-from alight.errors import ReplayError
+from alight.errors import EstimationError, ReplayError
 from alight.interfaces.replay_readers import (
     ImageSample,
     ImuSample,
@@ -47,6 +47,8 @@ CONTROL_DT = 0.01
 """Period of the Pipeline's ``command`` on the recording's clock (s), as in the runner."""
 LOG_EVERY = 2
 """A log row every this many control ticks (50 Hz)."""
+MAX_GAP_S = 1.0
+"""A gap between two messages longer than this (s) is jumped over, not ticked through."""
 DEFAULT_PRESET = "falanga2017"
 FRAMES_CSV = "frames.csv"
 
@@ -114,7 +116,9 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         nonlocal tick
         if not pipeline.ego_estimator.initialized:
             return
-        if tick is None:
+        if tick is None or until - tick * CONTROL_DT > MAX_GAP_S:
+            # start, or a gap in the recording: the Pipeline's clock jumps over it instead of ticking
+            # through (a damaged stamp far ahead must not cost hours of ticks)
             tick = math.floor(until / CONTROL_DT + 1e-9)
         while (tick + 1) * CONTROL_DT <= until + 1e-9:
             tick += 1
@@ -150,12 +154,9 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         if target is not None and truth_platform is not None:
             platform_err.append(float(np.linalg.norm(target.p_WP - truth_platform.p_W)))
 
-    for s in rec.samples():
-        if not math.isfinite(s.t):
-            continue
-        t_first = s.t if t_first is None else t_first
-        t_last = max(t_last, s.t)
-        run_ticks(s.t)
+    def _feed(s: object) -> int:
+        """Hand one sample to the Pipeline; 1 when it is a frame that could not be used, else 0."""
+        nonlocal last_odo, truth_ego, truth_platform
         if isinstance(s, OdometrySample):
             last_odo = s
             pipeline.on_odometry(s.t, s.p_WB, s.q_WB, s.v_WB)
@@ -166,8 +167,7 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
                 pipeline.on_range(s.t, s.range_m)
         elif isinstance(s, ImageSample):
             if pipeline.detector is None or not pipeline.ego_estimator.initialized:
-                skipped_frames += 1
-                continue
+                return 1
             observations, measurements = pipeline.on_image(s.t_capture, s.image)
             frames.append((s.t_capture, observations))
             for meas in measurements:
@@ -177,6 +177,24 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
                 truth_ego = s
             else:
                 truth_platform = s
+        return 0
+
+    t_now = -math.inf
+    try:
+        for s in rec.samples():
+            t_now = s.t
+            t_first = s.t if t_first is None else t_first
+            t_last = max(t_last, s.t)
+            run_ticks(s.t)
+            skipped_frames += _feed(s)
+        if t_first is not None:
+            run_ticks(t_last)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, EstimationError) as err:
+        # the values of a damaged log can still reach a block that refuses them: one line, not a trace
+        raise ReplayError(
+            f"{rec.path}: the Pipeline cannot use the message at t={t_now:.3f} s ({err})"
+        ) from None
+
     if t_first is None:
         raise ReplayError(f"{rec.path}: no messages on the mapped topics")
     if not pipeline.ego_estimator.initialized:
@@ -184,7 +202,6 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
             f"{rec.path}: the ego state never started: no message on the odometry topic "
             f"({rec.topics.get(Stream.ODOMETRY.value, 'none mapped')})"
         )
-    run_ticks(t_last)
     arrays = log.finalize()
     stats = pipeline.stats
     n_obs = sum(len(o) for _, o in frames)
@@ -202,6 +219,7 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         "frames": len(frames),
         "frames_skipped": skipped_frames,
         "bad_frames": rec.bad_frames,
+        "dropped_messages": rec.dropped,
         "frames_with_observations": sum(1 for _, o in frames if o),
         "observations": n_obs,
         "detections": stats.measurements,

@@ -19,7 +19,7 @@ import heapq
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -40,7 +40,43 @@ SIM_CLOCK_LIMIT_NS = 10**15
 simulated clock: its times are kept as they are instead of being made relative to its start."""
 
 
-class Stream(str, Enum):
+MAX_POSITION_M = 1.0e7
+"""Positions farther than this from the origin (m) are not a flight (a damaged value): dropped."""
+MAX_SPEED_MPS = 1.0e4
+MAX_IMU = 1.0e4
+"""Specific forces (m/s^2) or rates (rad/s) beyond this are dropped as damaged."""
+MAX_TIME_FROM_MEDIAN_S = 86400.0
+"""Samples stamped more than a day from the log's median time are dropped as damaged stamps."""
+
+
+def _ok(v: FloatArray | None, limit: float) -> bool:
+    return v is None or bool(np.isfinite(v).all() and np.abs(v).max() <= limit)
+
+
+def _plausible(s: Sample) -> bool:
+    """Finite, and within physical limits: a damaged log's garbage never reaches the Pipeline."""
+    if not math.isfinite(s.t):
+        return False
+    if isinstance(s, OdometrySample):
+        return _ok(s.p_WB, MAX_POSITION_M) and _ok(s.q_WB, 1.5) and _ok(s.v_WB, MAX_SPEED_MPS)
+    if isinstance(s, TruthSample):
+        return _ok(s.p_W, MAX_POSITION_M) and _ok(s.q_W, 1.5) and _ok(s.v_W, MAX_SPEED_MPS)
+    if isinstance(s, ImuSample):
+        return _ok(s.f_B, MAX_IMU) and _ok(s.w_B, MAX_IMU)
+    return True
+
+
+def _clean(samples: list[Sample]) -> tuple[list[Sample], int]:
+    """The plausible samples, sorted by time, and how many were dropped."""
+    kept = [s for s in samples if _plausible(s)]
+    if kept:
+        median = float(np.median([s.t for s in kept]))
+        kept = [s for s in kept if abs(s.t - median) <= MAX_TIME_FROM_MEDIAN_S]
+    kept.sort(key=lambda s: s.t)
+    return kept, len(samples) - len(kept)
+
+
+class Stream(StrEnum):
     """The inputs a recorded flight can give the Pipeline, and the truth it can be judged against."""
 
     ODOMETRY = "odometry"
@@ -124,7 +160,7 @@ class UlogMapping(_Strict):
     range: str = "distance_sensor"
     truth_position: str = "vehicle_local_position_groundtruth"
     truth_attitude: str = "vehicle_attitude_groundtruth"
-    multi_id: int = Field(0, ge=0)
+    multi_id: int = Field(default=0, ge=0)
 
 
 class RosMapping(_Strict):
@@ -136,14 +172,14 @@ class RosMapping(_Strict):
     image: list[str] = Field(default_factory=list)
     truth_ego: list[str] = Field(default_factory=list)
     truth_platform: list[str] = Field(default_factory=list)
-    image_latency_s: float = Field(0.0, ge=0.0, le=10.0)
+    image_latency_s: float = Field(default=0.0, ge=0.0, le=10.0)
 
 
 class ReplayMapping(_Strict):
     """Which topics of a log feed which :class:`Stream` (see docs/replay.md)."""
 
-    ulog: UlogMapping = Field(default_factory=UlogMapping)
-    ros: RosMapping = Field(default_factory=RosMapping)
+    ulog: UlogMapping = UlogMapping()
+    ros: RosMapping = RosMapping()
 
 
 DEFAULT_MAPPING_FILE = "replay_mapping.yaml"
@@ -201,19 +237,21 @@ class Recording:
     """stream value -> messages read so far"""
     bad_frames: int = 0
     """images that could not be decoded (skipped)"""
+    dropped: int = 0
+    """messages dropped as damaged (non-finite, beyond physical limits, or stamped far from the rest)"""
     _fast: list[Sample] = field(default_factory=list, repr=False)
     _reader: Any = field(default=None, repr=False)
     _image_conns: list[Any] = field(default_factory=list, repr=False)
     _origin_ns: int = 0
     _latency_s: float = 0.0
+    _t_mid: float = 0.0
 
     def samples(self) -> Iterator[Sample]:
         """Every sample, in time order (images streamed from the file, the rest held in memory)."""
         images = self._images() if self._image_conns else iter(())
         merged = heapq.merge(self._fast, images, key=lambda s: s.t)
         try:
-            for s in merged:
-                yield s
+            yield from merged
         except ReplayError:
             raise
         except Exception as err:  # noqa: BLE001 - a damaged file makes rosbags raise anything
@@ -232,6 +270,9 @@ class Recording:
             # unless the two clocks disagree by more than a second (a driver stamping on its own clock).
             t_rx = (int(t_ns) - self._origin_ns) * 1e-9
             t_in = t_rx if t_cap <= t_rx <= t_cap + 1.0 else t_cap
+            if not (math.isfinite(t_cap) and abs(t_cap - self._t_mid) <= MAX_TIME_FROM_MEDIAN_S):
+                self.dropped += 1
+                continue
             self.counts[Stream.IMAGE.value] = self.counts.get(Stream.IMAGE.value, 0) + 1
             yield ImageSample(t_in + self._latency_s, t_cap, image)
 
@@ -261,7 +302,9 @@ def open_recording(path: str | Path, mapping: ReplayMapping | None = None) -> Re
         return _open_ulog(p, m.ulog)
     if p.is_dir() or p.suffix.lower() in (".bag", ".db3", ".mcap"):
         return _open_bag(p, m.ros)
-    raise ReplayError(f"{p}: unknown log type (expected a .ulg, a .bag, a ROS 2 bag directory, .db3 or .mcap)")
+    raise ReplayError(
+        f"{p}: unknown log type (expected a .ulg, a .bag, a ROS 2 bag directory, .db3 or .mcap)"
+    )
 
 
 def _describe(err: BaseException) -> str:
@@ -305,6 +348,12 @@ def _ulog_topic(ulog: Any, name: str, multi_id: int) -> Mapping[str, np.ndarray]
     return None
 
 
+def _times(data: Mapping[str, np.ndarray], t0: int) -> FloatArray:
+    """A ULog topic's timestamps (us since boot) as seconds since the log's first one."""
+    us = np.asarray(data["timestamp"], dtype=np.int64) - t0
+    return us.astype(np.float64) * 1e-6
+
+
 def _fields(data: Mapping[str, np.ndarray], names: Sequence[str], topic: str) -> FloatArray:
     missing = [n for n in names if n not in data]
     if missing:
@@ -322,12 +371,12 @@ def _ulog_pose(
     """(t, p_WB, q_WB, v_WB) at the position topic's times, the attitude interpolated onto them."""
     if data_p is None:
         return None
-    t = (np.asarray(data_p["timestamp"], dtype=np.int64) - t0) * 1e-6
+    t = _times(data_p, t0)
     p = ned_to_enu(_fields(data_p, ("x", "y", "z"), topic_p))
     v = ned_to_enu(_fields(data_p, ("vx", "vy", "vz"), topic_p)) if "vx" in data_p else None
     if data_q is None:
         return None
-    tq = (np.asarray(data_q["timestamp"], dtype=np.int64) - t0) * 1e-6
+    tq = _times(data_q, t0)
     q = q_ned_frd_wxyz_to_q_WB(_fields(data_q, ("q[0]", "q[1]", "q[2]", "q[3]"), topic_q))
     ok = np.isfinite(q).all(axis=1)
     order = np.argsort(tq[ok], kind="stable")
@@ -367,14 +416,16 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
         t, p, q, v = pose
         topics[Stream.ODOMETRY.value] = f"{m.position} + {m.attitude}"
         fast += [
-            OdometrySample(float(t[i]), p[i], q[i], None if v is None or not np.isfinite(v[i]).all() else v[i])
+            OdometrySample(
+                float(t[i]), p[i], q[i], None if v is None or not np.isfinite(v[i]).all() else v[i]
+            )
             for i in range(t.shape[0])
         ]
         counts[Stream.ODOMETRY.value] = int(t.shape[0])
 
     imu = _ulog_topic(ulog, m.imu, mid)
     if imu is not None:
-        t = (np.asarray(imu["timestamp"], dtype=np.int64) - t0) * 1e-6
+        t = _times(imu, t0)
         w = frd_to_flu(_fields(imu, ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"), m.imu))
         f = frd_to_flu(
             _fields(imu, ("accelerometer_m_s2[0]", "accelerometer_m_s2[1]", "accelerometer_m_s2[2]"), m.imu)
@@ -387,8 +438,8 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
 
     rng = _ulog_topic(ulog, m.range, mid)
     if rng is not None:
-        t = (np.asarray(rng["timestamp"], dtype=np.int64) - t0) * 1e-6
-        d = _fields(rng, ("current_distance",), m.range)[:, 0]
+        t = _times(rng, t0)
+        d: FloatArray = _fields(rng, ("current_distance",), m.range)[:, 0]
         fast += [
             RangeSample(float(t[i]), float(d[i]) if math.isfinite(d[i]) and d[i] >= 0 else None)
             for i in range(t.shape[0])
@@ -417,8 +468,8 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
             f"{path}: no ego state: the ULog has no usable {m.position!r} with {m.attitude!r} "
             "(set ulog.position / ulog.attitude in a --mapping file)"
         )
-    fast.sort(key=lambda s: s.t)
-    return Recording(path=path, format="ulog", topics=topics, counts=counts, _fast=fast)
+    fast, dropped = _clean(fast)
+    return Recording(path=path, format="ulog", topics=topics, counts=counts, dropped=dropped, _fast=fast)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -459,7 +510,9 @@ def _open_bag(path: Path, m: RosMapping) -> Recording:
     try:
         reader.open()
     except Exception as err:  # noqa: BLE001 - rosbags raises its own errors, sqlite3's, mcap's, OSError
-        raise ReplayError(f"{path}: not a readable {'ROS 1' if fmt == 'ros1' else 'ROS 2'} bag ({_describe(err)})") from None
+        raise ReplayError(
+            f"{path}: not a readable {'ROS 1' if fmt == 'ros1' else 'ROS 2'} bag ({_describe(err)})"
+        ) from None
     try:
         return _bag_recording(path, fmt, reader, m)
     except ReplayError:
@@ -508,17 +561,22 @@ def _bag_recording(path: Path, fmt: str, reader: Any, m: RosMapping) -> Recordin
             if s is not None:
                 fast.append(s)
                 counts[stream.value] = counts.get(stream.value, 0) + 1
-    fast.sort(key=lambda s: s.t)
+    fast, dropped = _clean(fast)
     return Recording(
         path=path,
         format=fmt,
         topics={s.value: cs[0].topic for s, cs in chosen.items()},
         counts=counts,
+        dropped=dropped,
         _fast=fast,
         _reader=reader,
         _image_conns=chosen.get(Stream.IMAGE, []),
         _origin_ns=origin,
         _latency_s=m.image_latency_s,
+        # frames far from the other messages' times (or, without them, from the bag's middle) are damaged
+        _t_mid=float(np.median([x.t for x in fast]))
+        if fast
+        else (int(reader.start_time) + int(reader.end_time)) / 2e9 - origin * 1e-9,
     )
 
 
@@ -567,6 +625,10 @@ def _sample(stream: Stream, msg: Any, msgtype: str, t: float) -> Sample | None:
     return TruthSample(t, stream, p, q, v)
 
 
+def _u8(a: Any) -> NDArray[np.uint8]:
+    return np.ascontiguousarray(a, dtype=np.uint8)
+
+
 def decode_image(msg: Any, msgtype: str) -> NDArray[np.uint8] | None:
     """A ``sensor_msgs/Image`` (mono8, bgr8, rgb8, bgra8, rgba8, mono16) or ``CompressedImage`` (any
     format OpenCV decodes) as an (H, W) grey or (H, W, 3) BGR uint8 array; None when it cannot be."""
@@ -574,14 +636,14 @@ def decode_image(msg: Any, msgtype: str) -> NDArray[np.uint8] | None:
         buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
         if buf.size == 0:
             return None
-        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-        if img is None:
+        img: Any = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+        if img is None or img.dtype not in (np.uint8, np.uint16):
             return None
-        if img.dtype != np.uint8:
-            img = (img >> 8).astype(np.uint8) if img.dtype == np.uint16 else None
-        if img is not None and img.ndim == 3 and img.shape[2] == 4:
-            img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-        return img
+        if img.dtype == np.uint16:
+            img = img >> 8
+        if img.ndim == 3 and img.shape[2] == 4:
+            img = cv2.cvtColor(_u8(img), cv2.COLOR_BGRA2BGR)
+        return _u8(img)
     channels = {"mono8": 1, "8uc1": 1, "bgr8": 3, "rgb8": 3, "8uc3": 3, "bgra8": 4, "rgba8": 4, "mono16": 2}
     enc = str(msg.encoding).lower()
     c = channels.get(enc)
@@ -592,12 +654,9 @@ def decode_image(msg: Any, msgtype: str) -> NDArray[np.uint8] | None:
     rows = data[: h * step].reshape(h, step)[:, : w * c]
     if enc == "mono16":
         dt = ">u2" if msg.is_bigendian else "<u2"
-        return (rows.copy().view(dt).reshape(h, w) >> 8).astype(np.uint8)
+        return _u8(rows.copy().view(dt).reshape(h, w) >> 8)
     img = rows.reshape(h, w, c) if c > 1 else rows.reshape(h, w)
-    if enc == "rgb8":
-        return cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-    if enc == "bgra8":
-        return cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-    if enc == "rgba8":
-        return cv2.cvtColor(img, cv2.COLOR_RGBA2BGR)
-    return np.ascontiguousarray(img)
+    conversion = {"rgb8": cv2.COLOR_RGB2BGR, "bgra8": cv2.COLOR_BGRA2BGR, "rgba8": cv2.COLOR_RGBA2BGR}.get(
+        enc
+    )
+    return _u8(img if conversion is None else cv2.cvtColor(img, conversion))

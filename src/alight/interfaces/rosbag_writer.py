@@ -106,21 +106,29 @@ class BagRecorder:
 
     def _header(self, t: float, frame_id: str) -> Any:
         ns = _ns(t)
-        stamp = self._types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        stamp = self._types["builtin_interfaces/msg/Time"](
+            sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000
+        )
         return self._types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
-    def _vector3(self, v: Sequence[float]) -> Any:
+    def _vector3(self, v: Sequence[float] | NDArray[np.float64]) -> Any:
         return self._types["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
-    def _odometry(self, t: float, p: NDArray[np.float64], q: NDArray[np.float64], v_W: Any, child: str) -> Any:
+    def _odometry(
+        self, t: float, p: NDArray[np.float64], q: NDArray[np.float64], v_W: Any, child: str
+    ) -> Any:
         T = self._types
         pose = T["geometry_msgs/msg/Pose"](
             position=T["geometry_msgs/msg/Point"](x=float(p[0]), y=float(p[1]), z=float(p[2])),
-            orientation=T["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])),
+            orientation=T["geometry_msgs/msg/Quaternion"](
+                x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
+            ),
         )
         # REP-103: the twist of an Odometry is expressed in the child frame
         v_B = quat_to_rotmat(q).T @ v_W if v_W is not None and np.isfinite(v_W).all() else np.zeros(3)
-        twist = T["geometry_msgs/msg/Twist"](linear=self._vector3(v_B), angular=self._vector3((0.0, 0.0, 0.0)))
+        twist = T["geometry_msgs/msg/Twist"](
+            linear=self._vector3(v_B), angular=self._vector3((0.0, 0.0, 0.0))
+        )
         return T["nav_msgs/msg/Odometry"](
             header=self._header(t, "world"),
             child_frame_id=child,
@@ -163,7 +171,11 @@ class BagRecorder:
 
         def ch(name: str, width: int) -> NDArray[np.float64]:
             a = log.get(name)
-            return np.full((n, width), np.nan) if a is None else np.asarray(a, dtype=np.float64).reshape(n, width)
+            return (
+                np.full((n, width), np.nan)
+                if a is None
+                else np.asarray(a, dtype=np.float64).reshape(n, width)
+            )
 
         p_WB, v_WB, q_WB = ch("p_WB", 3), ch("v_WB", 3), ch("q_WB", 4)
         p_est, v_est, q_est = ch("p_WB_est", 3), ch("v_WB_est", 3), ch("q_WB_est", 4)
