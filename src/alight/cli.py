@@ -158,6 +158,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     out = Path(args.out)
     run = replay_to_dir(args.log, out, mapping=args.mapping, scenario=args.scenario)
     r = run.result
+    for warning in r["warnings"]:
+        print(f"alight replay: warning: {warning}", file=sys.stderr)
     counts = ", ".join(f"{k} {v}" for k, v in r["messages"].items())
     print(
         f"{r['format']} {r['source']}: {r['duration_s']:.1f} s replayed through {r['preset']} ({counts}); "

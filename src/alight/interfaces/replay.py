@@ -220,6 +220,7 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         "frames_skipped": skipped_frames,
         "bad_frames": rec.bad_frames,
         "dropped_messages": rec.dropped,
+        "warnings": list(rec.warnings),
         "frames_with_observations": sum(1 for _, o in frames if o),
         "observations": n_obs,
         "detections": stats.measurements,

@@ -15,7 +15,9 @@ file: a truncated or corrupted log gives one line, never a traceback.
 
 from __future__ import annotations
 
+import contextlib
 import heapq
+import io
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -237,6 +239,8 @@ class Recording:
     """stream value -> messages read so far"""
     bad_frames: int = 0
     """images that could not be decoded (skipped)"""
+    warnings: list[str] = field(default_factory=list)
+    """what the reader noticed but could read past (a damaged ULog's lost data)"""
     dropped: int = 0
     """messages dropped as damaged (non-finite, beyond physical limits, or stamped far from the rest)"""
     _fast: list[Sample] = field(default_factory=list, repr=False)
@@ -324,16 +328,22 @@ def _open_ulog(path: Path, m: UlogMapping) -> Recording:
     from pyulog import ULog
 
     wanted = [n for n in (m.position, m.attitude, m.imu, m.range, m.truth_position, m.truth_attitude) if n]
+    chatter = io.StringIO()
     try:
-        ulog = ULog(str(path), wanted)
+        with contextlib.redirect_stdout(chatter):  # pyulog prints its warnings about damaged data
+            ulog = ULog(str(path), wanted)
     except Exception as err:  # noqa: BLE001 - pyulog raises anything on damaged bytes
         raise ReplayError(f"{path}: not a readable ULog ({_describe(err)})") from None
     try:
-        return _ulog_recording(path, ulog, m)
+        rec = _ulog_recording(path, ulog, m)
     except ReplayError:
         raise
     except Exception as err:  # noqa: BLE001 - fields missing or ill-shaped in a damaged log
         raise ReplayError(f"{path}: cannot use the ULog's topics ({_describe(err)})") from None
+    if getattr(ulog, "file_corruption", False):
+        rec.warnings.append("pyulog found the file damaged (truncated or corrupt); replayed what it read")
+    rec.warnings += sorted({line.strip() for line in chatter.getvalue().splitlines() if line.strip()})[:5]
+    return rec
 
 
 def _ulog_topic(ulog: Any, name: str, multi_id: int) -> Mapping[str, np.ndarray] | None:
