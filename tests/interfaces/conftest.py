@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -44,3 +48,17 @@ def vision_flight() -> Flight:
 
     run = run_mission(scenario, frame_sink=sink)
     return Flight(scenario, run, frames)
+
+
+FUZZ = Path(__file__).resolve().parents[2] / "benchmarks" / "fuzz_logs.py"
+
+
+@pytest.fixture(scope="session")
+def fuzz_logs() -> ModuleType:
+    """benchmarks/fuzz_logs.py: the fuzzer, and the generated flights it damages."""
+    spec = importlib.util.spec_from_file_location("fuzz_logs", FUZZ)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["fuzz_logs"] = mod
+    spec.loader.exec_module(mod)
+    return mod

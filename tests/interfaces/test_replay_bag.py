@@ -3,9 +3,7 @@ detections, frame for frame; ROS 1 bags and the image encodings are read too."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -19,17 +17,6 @@ from alight.cli import main
 from alight.interfaces.replay import replay_recording
 from alight.interfaces.replay_readers import decode_image
 from alight.interfaces.rosbag_writer import write_bag
-
-FUZZ = Path(__file__).resolve().parents[2] / "benchmarks" / "fuzz_logs.py"
-
-
-def fuzz_module() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("fuzz_logs", FUZZ)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["fuzz_logs"] = mod
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _same_detections(flight: Any, replayed: list[tuple[float, list[Any]]]) -> None:
@@ -88,8 +75,8 @@ def test_cli_replay_of_a_bag_writes_the_report(vision_flight: Any, tmp_path: Pat
     assert log["t_det"].size == r["detections"]
 
 
-def test_ros1_bag_is_replayed(tmp_path: Path) -> None:
-    fz = fuzz_module()
+def test_ros1_bag_is_replayed(tmp_path: Path, fuzz_logs: ModuleType) -> None:
+    fz = fuzz_logs
     log, frames = fz.synthetic_log(), fz.synthetic_frames()
     bag = fz.write_ros1_bag(tmp_path / "flight.bag", log, frames)
     run = replay_recording(bag)

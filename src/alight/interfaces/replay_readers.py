@@ -330,8 +330,10 @@ def _open_ulog(path: Path, m: UlogMapping) -> Recording:
     wanted = [n for n in (m.position, m.attitude, m.imu, m.range, m.truth_position, m.truth_attitude) if n]
     chatter = io.StringIO()
     try:
-        with contextlib.redirect_stdout(chatter):  # pyulog prints its warnings about damaged data
-            ulog = ULog(str(path), wanted)
+        # pyulog prints its warnings about damaged data, and leaves a file it opened itself open when
+        # it raises: it gets an open file, and its chatter goes to the recording's warnings
+        with open(path, "rb") as f, contextlib.redirect_stdout(chatter):
+            ulog = ULog(f, wanted)
     except Exception as err:  # noqa: BLE001 - pyulog raises anything on damaged bytes
         raise ReplayError(f"{path}: not a readable ULog ({_describe(err)})") from None
     try:
