@@ -68,7 +68,12 @@ def _fly_exports(
         from alight.interfaces.rosbag_writer import BagRecorder
 
         latency = scenario.perception.latency_s
-        bag = BagRecorder(args.bag, storage=args.bag_storage, latency_s=latency)
+        try:
+            bag = BagRecorder(args.bag, storage=args.bag_storage, latency_s=latency)
+        except BaseException:
+            for e, _ in exports:
+                e.close()
+            raise
         exports.append((bag, lambda run: bag.finish(run.log)))
     return exports
 

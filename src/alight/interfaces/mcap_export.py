@@ -80,6 +80,10 @@ class McapExporter:
     """Writes a flight into ``path`` (an ``.mcap`` file, created or replaced)."""
 
     def __init__(self, path: str | Path) -> None:
+        from alight.interfaces.replay_readers import need
+
+        need("mcap")
+        need("foxglove_schemas_protobuf")
         from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
         from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
         from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations

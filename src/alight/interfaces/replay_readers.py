@@ -311,6 +311,18 @@ def open_recording(path: str | Path, mapping: ReplayMapping | None = None) -> Re
     )
 
 
+def need(module: str) -> Any:
+    """Import an optional dependency of replay and export, or say how to install it (one line)."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise ReplayError(
+            f"{module.split('.')[0]} is not installed: pip install 'alight[replay]' for replay and export"
+        ) from None
+
+
 def _describe(err: BaseException) -> str:
     text = str(err).strip().splitlines()
     first = text[0] if text else ""
@@ -325,7 +337,7 @@ def _describe(err: BaseException) -> str:
 
 
 def _open_ulog(path: Path, m: UlogMapping) -> Recording:
-    from pyulog import ULog
+    ULog = need("pyulog").ULog
 
     wanted = [n for n in (m.position, m.attitude, m.imu, m.range, m.truth_position, m.truth_attitude) if n]
     chatter = io.StringIO()
@@ -515,7 +527,7 @@ def _bag_paths(p: Path) -> tuple[list[Path], str]:
 
 
 def _open_bag(path: Path, m: RosMapping) -> Recording:
-    from rosbags.highlevel import AnyReader
+    AnyReader = need("rosbags.highlevel").AnyReader
 
     paths, fmt = _bag_paths(path)
     reader = AnyReader(paths)

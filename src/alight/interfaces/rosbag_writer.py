@@ -68,6 +68,9 @@ class BagRecorder:
     def __init__(
         self, path: str | Path, *, storage: str = "mcap", latency_s: float = 0.0, compress: bool = True
     ) -> None:
+        from alight.interfaces.replay_readers import need
+
+        need("rosbags")
         from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
 
