@@ -126,3 +126,15 @@ def test_image_encodings() -> None:
         header=header, format="jpeg", data=np.arange(50, dtype=np.uint8)
     )
     assert decode_image(bad, "sensor_msgs/msg/CompressedImage") is None
+
+
+def test_a_lone_mcap_file_is_replayed(tmp_path: Path, fuzz_logs: ModuleType) -> None:
+    """A ROS 2 MCAP file without its bag directory's metadata.yaml (as other recorders write them)."""
+    log, frames = fuzz_logs.synthetic_log(), fuzz_logs.synthetic_frames()
+    bag = write_bag(tmp_path / "bag", log, frames, compress=False)
+    lone = tmp_path / "lone.mcap"
+    lone.write_bytes(next(bag.glob("*.mcap")).read_bytes())
+    r = replay_recording(lone).result
+    assert r["format"] == "ros2" and r["frames"] == len(frames)
+    assert r["messages"]["odometry"] == log["t"].size
+    assert r["ego_reference"] == "ground truth" and r["ego_estimate_rmse_m"] < 0.1

@@ -233,9 +233,10 @@ def write_bag(
     *,
     storage: str = "mcap",
     latency_s: float = 0.0,
+    compress: bool = True,
 ) -> Path:
     """Write a flight already in memory (its log arrays and frames) as a ROS 2 bag at ``path``."""
-    rec = BagRecorder(path, storage=storage, latency_s=latency_s)
+    rec = BagRecorder(path, storage=storage, latency_s=latency_s, compress=compress)
     try:
         for t, img, obs in frames:
             rec(t, img, obs)
