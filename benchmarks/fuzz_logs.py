@@ -5,8 +5,9 @@ Run: ``python benchmarks/fuzz_logs.py [--cases N] [--seed S] [--timeout S] [--ul
 
 Inputs: the real PX4 ULog of the test data (``$ALIGHT_TESTDATA/px4_ulog/sample_log_small.ulg``, default
 ``<repo>/../shared/testdata/real``) when present, and three generated flights of 2 s (odometry, IMU,
-range, ground truth at 50 Hz and 10 camera frames): a ROS 2 bag with MCAP storage, one with sqlite3
-storage (both through ``alight.interfaces.rosbag_writer``), and a ROS 1 bag (rosbags' ROS 1 writer).
+range, ground truth at 50 Hz and 10 camera frames): ROS 2 bags with MCAP storage (zstd per message, and
+uncompressed), one with sqlite3 storage (all through ``alight.interfaces.rosbag_writer``), and a ROS 1 bag
+(rosbags' ROS 1 writer).
 Each case damages one copy of an input, the log file itself (inside a bag's directory, its storage file,
 the metadata kept): ``truncate`` cuts it at a uniformly drawn offset, ``flip`` sets 1 to 16 bytes at
 uniformly drawn offsets to random values. The damaged copy is replayed in full (``replay_recording``:
@@ -161,6 +162,10 @@ def make_inputs(workdir: Path, ulog: Path | None = None) -> dict[str, Path]:
     if real.is_file():
         inputs["ulog_real"] = real
     inputs["ros2_mcap"] = write_bag(workdir / "ros2_mcap", log, frames, storage="mcap")
+    # uncompressed too, so that flips land in the messages' bytes, not only in zstd frames
+    inputs["ros2_mcap_raw"] = write_bag(
+        workdir / "ros2_mcap_raw", log, frames, storage="mcap", compress=False
+    )
     inputs["ros2_sqlite3"] = write_bag(workdir / "ros2_sqlite3", log, frames, storage="sqlite3")
     inputs["ros1"] = write_ros1_bag(workdir / "ros1.bag", log, frames)
     return inputs

@@ -120,3 +120,4 @@ def test_short_fuzz_finds_no_crash_or_hang(tmp_path: Path, fuzz_logs: ModuleType
     assert totals["crash"] == 0 and totals["hang"] == 0, failures
     assert totals["clean"] > 0  # damage was found and reported, not only missed
     assert sum(totals.values()) == 3 * 2 * len(inputs)
+    assert len(inputs) == (5 if ULOG.is_file() else 4)
