@@ -54,8 +54,8 @@ def test_trajectory_is_the_logs_local_position_with_z_up(replayed: Path) -> None
     r = json.loads((replayed / "result.json").read_text())
     lp = _local_position()
     z_up = -np.asarray(lp["z"], dtype=float)
-    # the vehicle climbed: PX4's z (down) went negative, ours (up) positive, by the same amount (the
-    # replay's log samples at 50 Hz, so its extent can miss the first few ms of the log's)
+    # PX4's z points down, ours up: the heights are the negated z, about 0.1 to 1.2 m above the origin
+    # (the replay's log samples at 50 Hz, so its extent can miss the first few ms of the log's)
     assert r["ego_extent_m"]["z"] == pytest.approx([z_up.min(), z_up.max()], abs=5e-3)
     assert z_up.max() - z_up.min() > 0.9
     assert r["ego_extent_m"]["x"] == pytest.approx([np.min(lp["y"]), np.max(lp["y"])], abs=5e-3)  # east
@@ -97,3 +97,17 @@ def test_logged_heading_matches_px4_heading(replayed: Path) -> None:
     heading = float(np.median(lp["heading"]))
     err = np.angle(np.exp(1j * (yaw_enu - (math.pi / 2 - heading))))
     assert np.median(np.abs(err)) < math.radians(3)
+
+
+def test_imu_in_flu_measures_gravity_up() -> None:
+    """The accelerometer of a hovering or resting vehicle reads about +g along FLU z (PX4's FRD z reads
+    -g): the FRD -> FLU conversion of sensor_combined, checked on the real log."""
+    if not ULOG.is_file():
+        pytest.skip(f"real test data not found at {ULOG} (set ALIGHT_TESTDATA)")
+    from alight.interfaces.replay_readers import ImuSample, open_recording
+
+    rec = open_recording(ULOG)
+    f = np.array([s.f_B for s in rec.samples() if isinstance(s, ImuSample)])
+    assert f.shape[0] == rec.counts["imu"] > 1000
+    assert np.median(f[:, 2]) == pytest.approx(9.81, abs=0.6)
+    assert np.all(np.abs(np.median(f[:, :2], axis=0)) < 1.0)
