@@ -138,3 +138,48 @@ def test_a_lone_mcap_file_is_replayed(tmp_path: Path, fuzz_logs: ModuleType) -> 
     assert r["format"] == "ros2" and r["frames"] == len(frames)
     assert r["messages"]["odometry"] == log["t"].size
     assert r["ego_reference"] == "ground truth" and r["ego_estimate_rmse_m"] < 0.1
+
+
+def test_mavros_style_bag_with_compressed_images(tmp_path: Path) -> None:
+    """Default topic names of a typical PX4 + mavros + camera driver recording: PoseStamped poses on
+    /mavros/local_position/pose, JPEG frames on /camera/image_raw/compressed, stamped on a wall clock."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    t0_ns = 1_700_000_000 * 10**9  # a wall clock: times are made relative to the bag's start
+
+    def header(t: float) -> Any:
+        ns = t0_ns + round(t * 1e9)
+        return T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id="map"
+        )
+
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c_pose = w.add_connection(
+            "/mavros/local_position/pose", "geometry_msgs/msg/PoseStamped", typestore=ts
+        )
+        c_img = w.add_connection(
+            "/camera/image_raw/compressed", "sensor_msgs/msg/CompressedImage", typestore=ts
+        )
+        for k in range(100):  # 2 s at 50 Hz, climbing at 1 m/s, yawed 90 deg
+            t = 0.02 * k
+            pose = T["geometry_msgs/msg/Pose"](
+                position=T["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=1.0 + t),
+                orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=2**-0.5, w=2**-0.5),
+            )
+            msg = T["geometry_msgs/msg/PoseStamped"](header=header(t), pose=pose)
+            w.write(c_pose, t0_ns + round(t * 1e9), ts.serialize_cdr(msg, msg.__msgtype__))
+        for k in range(5):
+            t = 0.3 * k + 0.1
+            ok, jpg = cv2.imencode(".jpg", np.full((48, 64, 3), 128, np.uint8))
+            msg = T["sensor_msgs/msg/CompressedImage"](header=header(t), format="jpeg", data=jpg.reshape(-1))
+            w.write(c_img, t0_ns + round((t + 0.05) * 1e9), ts.serialize_cdr(msg, msg.__msgtype__))
+    r = replay_recording(tmp_path / "bag").result
+    assert r["topics"] == {"odometry": "/mavros/local_position/pose", "image": "/camera/image_raw/compressed"}
+    assert r["messages"] == {"odometry": 100, "image": 5} and r["frames"] == 5 and r["bad_frames"] == 0
+    assert r["t_start_s"] == pytest.approx(0.0, abs=1e-9) and r["duration_s"] == pytest.approx(1.98, abs=0.06)
+    assert r["ego_extent_m"]["x"] == pytest.approx([1.0, 1.0]) and r["ego_extent_m"]["y"] == pytest.approx(
+        [2.0, 2.0]
+    )
+    assert r["ego_extent_m"]["z"][1] == pytest.approx(2.98, abs=0.03)
