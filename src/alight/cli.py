@@ -52,6 +52,17 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     return 0
 
 
+def _camera_of(scenario: Any) -> tuple[Any, Any]:
+    """The camera model and mount of the scenario's preset (as the runner builds them)."""
+    import numpy as np
+
+    from alight.airframe import DEFAULT_AIRFRAME
+    from alight.mission.presets import build_preset
+
+    preset = build_preset(scenario, DEFAULT_AIRFRAME, np.random.default_rng(0))
+    return preset.camera, preset.mount
+
+
 def _fly_exports(
     args: argparse.Namespace, scenario: Any, out: Path
 ) -> list[tuple[Any, Callable[[Any], object]]]:
@@ -62,7 +73,8 @@ def _fly_exports(
         from alight.interfaces.mcap_export import MCAP_FILE, McapExporter
 
         out.mkdir(parents=True, exist_ok=True)
-        mcap = McapExporter(out / MCAP_FILE)
+        camera, mount = _camera_of(scenario)
+        mcap = McapExporter(out / MCAP_FILE, camera=camera, mount=mount)
         exports.append((mcap, lambda run: mcap.finish(run.log, run.mode_history)))
     if args.bag is not None:
         from alight.interfaces.rosbag_writer import BagRecorder

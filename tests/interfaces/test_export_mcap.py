@@ -9,12 +9,16 @@ from typing import Any
 
 import numpy as np
 import pytest
+from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
 from mcap.reader import make_reader
+from scipy.spatial.transform import Rotation
 
+from alight.cameras.pinhole import PinholeCamera
 from alight.cli import main
 from alight.interfaces import mcap_export as mx
 
@@ -29,13 +33,18 @@ EXPECTED = {
     mx.CH_TF: ("foxglove.FrameTransforms", "protobuf"),
     mx.CH_MODE: ("foxglove.Log", "protobuf"),
     mx.CH_SERIES: ("alight.Series", "jsonschema"),
+    mx.CH_CALIBRATION: ("foxglove.CameraCalibration", "protobuf"),
 }
 
 
 @pytest.fixture(scope="module")
 def exported(vision_flight: Any, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from alight.airframe import DEFAULT_AIRFRAME
+    from alight.mission.presets import build_preset
+
+    preset = build_preset(vision_flight.scenario, DEFAULT_AIRFRAME, np.random.default_rng(0))
     path = tmp_path_factory.mktemp("mcap") / mx.MCAP_FILE
-    exporter = mx.McapExporter(path)
+    exporter = mx.McapExporter(path, camera=preset.camera, mount=preset.mount)
     for t, image, obs in vision_flight.frames:
         exporter(t, image, obs)
     exporter.finish(vision_flight.log, vision_flight.run.mode_history)
@@ -58,7 +67,7 @@ def test_channels_schemas_and_counts(vision_flight: Any, exported: Path) -> None
     log = vision_flight.log
     n = log["t"].size
     n_frames = len(vision_flight.frames)
-    assert counts[mx.CH_IMAGE] == counts[mx.CH_ANNOTATIONS] == n_frames
+    assert counts[mx.CH_IMAGE] == counts[mx.CH_ANNOTATIONS] == counts[mx.CH_CALIBRATION] == n_frames
     assert counts[mx.CH_UAV_POSE] == counts[mx.CH_UAV_POSE_EST] == counts[mx.CH_PLATFORM_POSE] == n
     assert counts[mx.CH_TF] == counts[mx.CH_SERIES] == n
     assert counts[mx.CH_PLATFORM_POSE_EST] == int(np.isfinite(log["p_WP_est"]).all(axis=1).sum()) > 0
@@ -105,6 +114,19 @@ def test_decoded_messages_match_the_log(vision_flight: Any, exported: Path) -> N
         for o, pts in zip((o for o in obs if o.pixels.shape[0]), ann.points, strict=True):
             assert [(q.x, q.y) for q in pts.points] == [tuple(px) for px in o.pixels.tolist()]
     assert modes[0].startswith(vision_flight.run.mode_history[0][1])
+    # the camera: its calibration is the preset's K, and /tf mounts it on the vehicle looking down
+    with open(exported, "rb") as f:
+        _, _, m = next(make_reader(f).iter_messages(topics=[mx.CH_CALIBRATION]))
+    cal = CameraCalibration.FromString(m.data)
+    K = PinholeCamera.default_downward().K
+    assert (cal.width, cal.height) == (752, 480) and list(cal.K) == K.reshape(-1).tolist()
+    with open(exported, "rb") as f:
+        _, _, m = next(make_reader(f).iter_messages(topics=[mx.CH_TF]))
+    tf = {t.child_frame_id: t for t in FrameTransforms.FromString(m.data).transforms}
+    r = tf["camera"].rotation
+    R_BC = Rotation.from_quat([r.x, r.y, r.z, r.w]).as_matrix()
+    assert tf["camera"].parent_frame_id == "uav"
+    assert np.allclose(R_BC @ [0.0, 0.0, 1.0], [0.0, 0.0, -1.0])  # the optical axis is the body's down
     assert series[k]["t"] == log["t"][k] and series[k]["q_WB_est_w"] == log["q_WB_est"][k, 3]
 
 
@@ -119,7 +141,7 @@ def test_cli_fly_with_mcap_and_bag(tmp_path: Path) -> None:
     assert main(["fly", str(scenario), "--out", str(out), "--mcap", "--bag", str(bag)]) == 0
     assert (out / "report.html").is_file() and (out / "result.json").is_file()
     s = _summary(out / mx.MCAP_FILE)
-    assert {c.topic for c in s.channels.values()} >= {mx.CH_IMAGE, mx.CH_UAV_POSE, mx.CH_SERIES}
+    assert {c.topic for c in s.channels.values()} == set(EXPECTED)
     assert (bag / "metadata.yaml").is_file() and list(bag.glob("*.mcap"))
     # the bag written beside it replays
     assert main(["replay", str(bag), "--out", str(tmp_path / "replay")]) == 0

@@ -24,6 +24,7 @@ from typing import IO, Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from alight.errors import ReplayError
 from alight.types import Observation
@@ -45,6 +46,7 @@ CH_IMAGE = "/camera/image/compressed"
 CH_ANNOTATIONS = "/camera/annotations"
 CH_MODE = "/mission/mode"
 CH_SERIES = "/alight/series"
+CH_CALIBRATION = "/camera/calibration"
 
 JPEG_QUALITY = 90
 """Quality of the exported camera frames (JPEG keeps a 60 s flight at 20 Hz to tens of MB; the MCAP is
@@ -77,13 +79,21 @@ def _file_descriptor_set(message_class: Any) -> bytes:
 
 
 class McapExporter:
-    """Writes a flight into ``path`` (an ``.mcap`` file, created or replaced)."""
+    """Writes a flight into ``path`` (an ``.mcap`` file, created or replaced).
 
-    def __init__(self, path: str | Path) -> None:
+    Args:
+        path: the file.
+        camera: the camera model; a pinhole camera (anything with ``width``, ``height``, ``K`` and ``dist``)
+            gives a ``foxglove.CameraCalibration`` with every frame, so Foxglove can draw the frames in 3D.
+        mount: the camera's mount (``R_BC``, ``p_BC``): a ``uav`` -> ``camera`` transform in ``/tf``.
+    """
+
+    def __init__(self, path: str | Path, *, camera: Any = None, mount: Any = None) -> None:
         from alight.interfaces.replay_readers import need
 
         need("mcap")
         need("foxglove_schemas_protobuf")
+        from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
         from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
         from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
         from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
@@ -107,8 +117,26 @@ class McapExporter:
             "image": CompressedImage,
             "annotations": ImageAnnotations,
             "log": Log,
+            "calibration": CameraCalibration,
         }
+        self._calibration = self._calibration_msg(camera)
+        self._mount = mount
         self._closed = False
+
+    def _calibration_msg(self, camera: Any) -> Any:
+        K = getattr(camera, "K", None)
+        if camera is None or K is None or not hasattr(camera, "dist"):
+            return None  # not a pinhole camera (an omnidirectional model has no CameraCalibration)
+        msg = self._classes["calibration"]()
+        msg.frame_id = CAMERA_FRAME
+        msg.width, msg.height = int(camera.width), int(camera.height)
+        msg.distortion_model = "plumb_bob" if len(camera.dist) <= 5 else "rational_polynomial"
+        msg.D.extend(float(x) for x in camera.dist)
+        K = np.asarray(K, dtype=np.float64)
+        msg.K.extend(K.reshape(-1).tolist())
+        msg.R.extend(np.eye(3).reshape(-1).tolist())
+        msg.P.extend(np.hstack([K, np.zeros((3, 1))]).reshape(-1).tolist())
+        return msg
 
     # -- channels -----------------------------------------------------------------------------------
     def _proto_channel(self, topic: str, cls: Any) -> int:
@@ -154,6 +182,9 @@ class McapExporter:
         img.format = "jpeg"
         img.data = buf.tobytes()
         self._put(CH_IMAGE, img, t_capture)
+        if self._calibration is not None:
+            self._stamp(self._calibration, t_capture)
+            self._put(CH_CALIBRATION, self._calibration, t_capture)
         ann = self._classes["annotations"]()
         for obs in observations:
             px = np.asarray(obs.pixels, dtype=np.float64).reshape(-1, 2)
@@ -195,6 +226,22 @@ class McapExporter:
     def _write_log(
         self, log: Mapping[str, np.ndarray], mode_history: Sequence[tuple[float, str, str]]
     ) -> None:
+        # every channel is in the file, with no messages where the flight had none (no detection, no
+        # camera), so a Foxglove layout made for one flight opens any other
+        c = self._classes
+        for topic, cls in (
+            (CH_IMAGE, c["image"]),
+            (CH_ANNOTATIONS, c["annotations"]),
+            (CH_UAV_POSE, c["pose"]),
+            (CH_UAV_POSE_EST, c["pose"]),
+            (CH_PLATFORM_POSE, c["pose"]),
+            (CH_PLATFORM_POSE_EST, c["pose"]),
+            (CH_MEASUREMENTS, c["pose"]),
+            (CH_TF, c["tf"]),
+            (CH_MODE, c["log"]),
+            *([(CH_CALIBRATION, c["calibration"])] if self._calibration is not None else []),
+        ):
+            self._proto_channel(topic, cls)
         t = np.asarray(log["t"], dtype=np.float64)
         n = t.shape[0]
 
@@ -228,6 +275,19 @@ class McapExporter:
                     tr.parent_frame_id, tr.child_frame_id = WORLD_FRAME, child
                     tr.translation.x, tr.translation.y, tr.translation.z = (float(x) for x in p)
                     tr.rotation.x, tr.rotation.y, tr.rotation.z, tr.rotation.w = (float(x) for x in q)
+            if self._mount is not None:
+                tr = tfs.transforms.add()
+                self._stamp(tr, ti)
+                tr.parent_frame_id, tr.child_frame_id = UAV_FRAME, CAMERA_FRAME
+                p_BC = np.asarray(self._mount.p_BC, dtype=np.float64)
+                x, y, z, w = Rotation.from_matrix(np.asarray(self._mount.R_BC, dtype=np.float64)).as_quat()
+                tr.translation.x, tr.translation.y, tr.translation.z = (float(v) for v in p_BC)
+                tr.rotation.x, tr.rotation.y, tr.rotation.z, tr.rotation.w = (
+                    float(x),
+                    float(y),
+                    float(z),
+                    float(w),
+                )
             if len(tfs.transforms):
                 self._put(CH_TF, tfs, ti)
 
