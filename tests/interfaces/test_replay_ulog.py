@@ -48,6 +48,9 @@ def test_report_and_result(replayed: Path) -> None:
     assert r["frames"] == 0 and r["detections"] == 0  # no camera in this log
     # the log's own span: first to last message of the mapped topics
     assert 6.0 < r["duration_s"] < 7.0
+    # this log has no horizontal position (no GPS): PX4 says so, and so does the replay
+    assert np.all(lp["xy_valid"] == 0)
+    assert f"vehicle_local_position: xy_valid is false in {len(lp['xy_valid'])} of" in r["warnings"][0]
 
 
 def test_trajectory_is_the_logs_local_position_with_z_up(replayed: Path) -> None:

@@ -432,10 +432,21 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
     topics: dict[str, str] = {}
     counts: dict[str, int] = {}
     fast: list[Sample] = []
+    warnings: list[str] = []
 
-    pose = _ulog_pose(
-        _ulog_topic(ulog, m.position, mid), _ulog_topic(ulog, m.attitude, mid), m.position, m.attitude, t0
-    )
+    data_p = _ulog_topic(ulog, m.position, mid)
+    if data_p is not None:
+        # PX4 flags what its estimator did not know (no GPS: no horizontal position); the values are
+        # replayed as logged, and the report says so
+        for flag, what in (("xy_valid", "x, y"), ("z_valid", "z"), ("v_xy_valid", "vx, vy")):
+            if flag in data_p:
+                bad = int(np.count_nonzero(np.asarray(data_p[flag]) == 0))
+                if bad:
+                    n = len(data_p[flag])
+                    warnings.append(
+                        f"{m.position}: {flag} is false in {bad} of {n} samples ({what} as logged)"
+                    )
+    pose = _ulog_pose(data_p, _ulog_topic(ulog, m.attitude, mid), m.position, m.attitude, t0)
     if pose is not None:
         t, p, q, v = pose
         topics[Stream.ODOMETRY.value] = f"{m.position} + {m.attitude}"
@@ -493,7 +504,9 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
             "(set ulog.position / ulog.attitude in a --mapping file)"
         )
     fast, dropped = _clean(fast)
-    return Recording(path=path, format="ulog", topics=topics, counts=counts, dropped=dropped, _fast=fast)
+    return Recording(
+        path=path, format="ulog", topics=topics, counts=counts, warnings=warnings, dropped=dropped, _fast=fast
+    )
 
 
 # --------------------------------------------------------------------------------------------------
