@@ -599,6 +599,11 @@ def _bag_recording(path: Path, fmt: str, reader: Any, m: RosMapping) -> Recordin
                 fast.append(s)
                 counts[stream.value] = counts.get(stream.value, 0) + 1
     fast, dropped = _clean(fast)
+    # frames stamped far from the other messages (or, without them, from the bag's middle) are damaged
+    if fast:
+        t_mid = float(np.median([x.t for x in fast]))
+    else:
+        t_mid = ((int(reader.start_time) + int(reader.end_time)) // 2 - origin) * 1e-9
     return Recording(
         path=path,
         format=fmt,
@@ -610,10 +615,7 @@ def _bag_recording(path: Path, fmt: str, reader: Any, m: RosMapping) -> Recordin
         _image_conns=chosen.get(Stream.IMAGE, []),
         _origin_ns=origin,
         _latency_s=m.image_latency_s,
-        # frames far from the other messages' times (or, without them, from the bag's middle) are damaged
-        _t_mid=float(np.median([x.t for x in fast]))
-        if fast
-        else (int(reader.start_time) + int(reader.end_time)) / 2e9 - origin * 1e-9,
+        _t_mid=t_mid,
     )
 
 
