@@ -140,9 +140,10 @@ def test_a_lone_mcap_file_is_replayed(tmp_path: Path, fuzz_logs: ModuleType) -> 
     assert r["ego_reference"] == "ground truth" and r["ego_estimate_rmse_m"] < 0.1
 
 
-def test_mavros_style_bag_with_compressed_images(tmp_path: Path) -> None:
-    """Default topic names of a typical PX4 + mavros + camera driver recording: PoseStamped poses on
-    /mavros/local_position/pose, JPEG frames on /camera/image_raw/compressed, stamped on a wall clock."""
+def _mavros_style_bag(path: Path, *, frame_hw: tuple[int, int] = (48, 64), n_frames: int = 5) -> Path:
+    """Default topic names of a typical PX4 + mavros + camera driver recording, written in time order as
+    a recorder does: PoseStamped poses on /mavros/local_position/pose (2 s at 50 Hz, climbing at 1 m/s),
+    JPEG frames on /camera/image_raw/compressed, stamped on a wall clock."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
@@ -155,27 +156,38 @@ def test_mavros_style_bag_with_compressed_images(tmp_path: Path) -> None:
             stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id="map"
         )
 
-    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as w:
-        c_pose = w.add_connection(
-            "/mavros/local_position/pose", "geometry_msgs/msg/PoseStamped", typestore=ts
+    items: list[tuple[int, str, bytes]] = []
+    for k in range(100):
+        t = 0.02 * k
+        pose = T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=1.0 + t),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=2**-0.5, w=2**-0.5),
         )
-        c_img = w.add_connection(
-            "/camera/image_raw/compressed", "sensor_msgs/msg/CompressedImage", typestore=ts
-        )
-        for k in range(100):  # 2 s at 50 Hz, climbing at 1 m/s, yawed 90 deg
-            t = 0.02 * k
-            pose = T["geometry_msgs/msg/Pose"](
-                position=T["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=1.0 + t),
-                orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=2**-0.5, w=2**-0.5),
-            )
-            msg = T["geometry_msgs/msg/PoseStamped"](header=header(t), pose=pose)
-            w.write(c_pose, t0_ns + round(t * 1e9), ts.serialize_cdr(msg, msg.__msgtype__))
-        for k in range(5):
-            t = 0.3 * k + 0.1
-            ok, jpg = cv2.imencode(".jpg", np.full((48, 64, 3), 128, np.uint8))
-            msg = T["sensor_msgs/msg/CompressedImage"](header=header(t), format="jpeg", data=jpg.reshape(-1))
-            w.write(c_img, t0_ns + round((t + 0.05) * 1e9), ts.serialize_cdr(msg, msg.__msgtype__))
-    r = replay_recording(tmp_path / "bag").result
+        msg = T["geometry_msgs/msg/PoseStamped"](header=header(t), pose=pose)
+        items.append((t0_ns + round(t * 1e9), "pose", ts.serialize_cdr(msg, msg.__msgtype__)))
+    rng = np.random.default_rng(0)
+    for k in range(n_frames):
+        t = 1.5 * k / n_frames + 0.1
+        # noise: JPEG cannot shrink it, so large frames make a file of several MCAP chunks
+        ok, jpg = cv2.imencode(".jpg", rng.integers(0, 256, (*frame_hw, 3), dtype=np.uint8))
+        msg = T["sensor_msgs/msg/CompressedImage"](header=header(t), format="jpeg", data=jpg.reshape(-1))
+        items.append((t0_ns + round((t + 0.05) * 1e9), "img", ts.serialize_cdr(msg, msg.__msgtype__)))
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {
+            "pose": w.add_connection(
+                "/mavros/local_position/pose", "geometry_msgs/msg/PoseStamped", typestore=ts
+            ),
+            "img": w.add_connection(
+                "/camera/image_raw/compressed", "sensor_msgs/msg/CompressedImage", typestore=ts
+            ),
+        }
+        for ns, which, raw in sorted(items, key=lambda x: x[0]):
+            w.write(conns[which], ns, raw)
+    return path
+
+
+def test_mavros_style_bag_with_compressed_images(tmp_path: Path) -> None:
+    r = replay_recording(_mavros_style_bag(tmp_path / "bag")).result
     assert r["topics"] == {"odometry": "/mavros/local_position/pose", "image": "/camera/image_raw/compressed"}
     assert r["messages"] == {"odometry": 100, "image": 5} and r["frames"] == 5 and r["bad_frames"] == 0
     assert r["t_start_s"] == pytest.approx(0.0, abs=1e-9) and r["duration_s"] == pytest.approx(1.98, abs=0.06)
@@ -183,3 +195,19 @@ def test_mavros_style_bag_with_compressed_images(tmp_path: Path) -> None:
         [2.0, 2.0]
     )
     assert r["ego_extent_m"]["z"][1] == pytest.approx(2.98, abs=0.03)
+    assert r["warnings"] == []
+
+
+def test_an_mcap_bag_cut_short_replays_what_was_written(tmp_path: Path) -> None:
+    """A recorder killed mid-write leaves an MCAP without its summary: rosbags refuses it, the replay
+    reads the messages before the cut and says so."""
+    bag = _mavros_style_bag(tmp_path / "bag", frame_hw=(480, 640), n_frames=20)  # about 8 chunks
+    storage = next(bag.glob("*.mcap"))
+    data = storage.read_bytes()
+    storage.write_bytes(data[: len(data) // 2])
+    r = replay_recording(bag).result
+    assert 20 < r["messages"]["odometry"] < 100 and 0 < r["frames"] < 20
+    assert r["warnings"] and "the MCAP file is damaged" in r["warnings"][0]
+    # what was read is the start of the flight, unchanged
+    assert r["t_start_s"] == pytest.approx(0.0, abs=1e-9)
+    assert r["ego_extent_m"]["z"][0] == pytest.approx(1.0, abs=0.03)

@@ -543,21 +543,55 @@ def _open_bag(path: Path, m: RosMapping) -> Recording:
     AnyReader = need("rosbags.highlevel").AnyReader
 
     paths, fmt = _bag_paths(path)
-    reader = AnyReader(paths)
+    reader: Any = AnyReader(paths)
+    salvaged = ""
     try:
         reader.open()
     except Exception as err:  # noqa: BLE001 - rosbags raises its own errors, sqlite3's, mcap's, OSError
-        raise ReplayError(
-            f"{path}: not a readable {'ROS 1' if fmt == 'ros1' else 'ROS 2'} bag ({_describe(err)})"
-        ) from None
+        reason = _describe(err)
+        reader = _salvage(paths[0]) if fmt == "ros2" else None
+        if reader is None:
+            raise ReplayError(
+                f"{path}: not a readable {'ROS 1' if fmt == 'ros1' else 'ROS 2'} bag ({reason})"
+            ) from None
+        salvaged = (
+            f"the MCAP file is damaged ({reason}); replayed the {reader.message_count} messages before "
+            f"the damage{f' ({reader.stopped_by})' if reader.stopped_by else ''}"
+        )
     try:
-        return _bag_recording(path, fmt, reader, m)
+        rec = _bag_recording(path, fmt, reader, m)
+        if salvaged:
+            rec.warnings.append(salvaged)
+        return rec
     except ReplayError:
         _close_quietly(reader)
         raise
     except Exception as err:  # noqa: BLE001 - a damaged file makes rosbags raise anything
         _close_quietly(reader)
         raise ReplayError(f"{path}: cannot read the bag's messages ({_describe(err)})") from None
+
+
+def _salvage(path: Path) -> Any:
+    """A :class:`~alight.interfaces.mcap_salvage.McapSalvage` of a ROS 2 bag's MCAP file (or a lone
+    ``.mcap``) cut short, when it holds messages; None otherwise (sqlite3, nothing readable)."""
+    from alight.interfaces.mcap_salvage import McapSalvage
+
+    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    if len(files) != 1 or files[0].suffix.lower() != ".mcap":
+        return None
+    zstd = False
+    meta = files[0].parent / "metadata.yaml"
+    if meta.is_file():
+        try:
+            info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+            zstd = info.get("compression_mode") == "message" and info.get("compression_format") == "zstd"
+        except Exception:  # noqa: BLE001 - a damaged metadata.yaml: no salvage
+            return None
+    try:
+        salvage = McapSalvage(files[0], zstd_messages=zstd)
+    except Exception:  # noqa: BLE001 - not even a readable start
+        return None
+    return salvage if salvage.message_count > 0 else None
 
 
 def _close_quietly(reader: Any) -> None:
