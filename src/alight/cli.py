@@ -1,11 +1,12 @@
 """The ``alight`` command.
 
-    alight fly SCENARIO.yaml --out DIR [--seed N]
+    alight fly SCENARIO.yaml --out DIR [--seed N] [--replay] [--mcap] [--bag PATH [--bag-storage S]]
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
     alight campaign CAMPAIGN.yaml [--out DIR] [--engine local|dask] [--scheduler ADDR] [--workers N]
                     [--no-progress] [--limit N]
     alight report DIR
+    alight replay LOG --out DIR [--mapping FILE] [--scenario FILE]
 
 Exit status 0 on success, 2 on bad input with one line on stderr that says what is wrong and where.
 """
@@ -15,7 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from alight.errors import AlightError
 
@@ -30,7 +33,15 @@ def _cmd_fly(args: argparse.Namespace) -> int:
             raise AlightError(f"--seed must be >= 0, got {args.seed}")
         scenario = scenario.with_seed(args.seed)
     out = Path(args.out)
-    run = fly_to_dir(scenario, out, replay=args.replay)
+    exports = _fly_exports(args, scenario, out)
+    try:
+        run = fly_to_dir(scenario, out, replay=args.replay, frame_sinks=[e for e, _ in exports])
+    except BaseException:
+        for e, _ in exports:
+            e.close()
+        raise
+    for _, finish in exports:
+        finish(run)
     r = run.result
     err = r["touchdown_error_m"]
     err_txt = "-" if err is None else f"{err:.3f} m"
@@ -39,6 +50,44 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         f"{r['simulated_time_s']:.1f} s simulated in {r['wall_time_s']:.2f} s -> {out / 'report.html'}"
     )
     return 0
+
+
+def _camera_of(scenario: Any) -> tuple[Any, Any]:
+    """The camera model and mount of the scenario's preset (as the runner builds them)."""
+    import numpy as np
+
+    from alight.airframe import DEFAULT_AIRFRAME
+    from alight.mission.presets import build_preset
+
+    preset = build_preset(scenario, DEFAULT_AIRFRAME, np.random.default_rng(0))
+    return preset.camera, preset.mount
+
+
+def _fly_exports(
+    args: argparse.Namespace, scenario: Any, out: Path
+) -> list[tuple[Any, Callable[[Any], object]]]:
+    """The exporters ``alight fly --mcap`` / ``--bag PATH`` asked for: (frame sink with a ``close``,
+    finish(run))."""
+    exports: list[tuple[Any, Callable[[Any], object]]] = []
+    if args.mcap:
+        from alight.interfaces.mcap_export import MCAP_FILE, McapExporter
+
+        out.mkdir(parents=True, exist_ok=True)
+        camera, mount = _camera_of(scenario)
+        mcap = McapExporter(out / MCAP_FILE, camera=camera, mount=mount)
+        exports.append((mcap, lambda run: mcap.finish(run.log, run.mode_history)))
+    if args.bag is not None:
+        from alight.interfaces.rosbag_writer import BagRecorder
+
+        latency = scenario.perception.latency_s
+        try:
+            bag = BagRecorder(args.bag, storage=args.bag_storage, latency_s=latency)
+        except BaseException:
+            for e, _ in exports:
+                e.close()
+            raise
+        exports.append((bag, lambda run: bag.finish(run.log)))
+    return exports
 
 
 def _cmd_detect(args: argparse.Namespace) -> int:
@@ -120,6 +169,22 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from alight.interfaces.replay import replay_to_dir
+
+    out = Path(args.out)
+    run = replay_to_dir(args.log, out, mapping=args.mapping, scenario=args.scenario)
+    r = run.result
+    for warning in r["warnings"]:
+        print(f"alight replay: warning: {warning}", file=sys.stderr)
+    counts = ", ".join(f"{k} {v}" for k, v in r["messages"].items())
+    print(
+        f"{r['format']} {r['source']}: {r['duration_s']:.1f} s replayed through {r['preset']} ({counts}); "
+        f"{r['frames']} frames, {r['detections']} detections -> {out / 'report.html'}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="alight", description="Autonomous landing on moving platforms.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
@@ -131,6 +196,13 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     fly.add_argument(
         "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
+    )
+    fly.add_argument("--mcap", action="store_true", help="also write flight.mcap (Foxglove schemas)")
+    fly.add_argument(
+        "--bag", default=None, metavar="PATH", help="also write the flight as a ROS 2 bag at PATH"
+    )
+    fly.add_argument(
+        "--bag-storage", choices=("mcap", "sqlite3"), default="mcap", help="storage of --bag (default mcap)"
     )
     fly.set_defaults(func=_cmd_fly)
 
@@ -160,6 +232,17 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="(re)write a campaign's summary.json and report.html")
     rep.add_argument("dir", help="campaign output directory")
     rep.set_defaults(func=_cmd_report)
+
+    rpl = sub.add_parser(
+        "replay", help="run perception and estimation on a recorded flight (PX4 ULog, ROS 1/2 bag, MCAP)"
+    )
+    rpl.add_argument("log", help=".ulg, .bag, a ROS 2 bag directory, .db3 or .mcap")
+    rpl.add_argument("--out", required=True, help="output directory")
+    rpl.add_argument("--mapping", default=None, help="topic mapping YAML (default: the packaged one)")
+    rpl.add_argument(
+        "--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)"
+    )
+    rpl.set_defaults(func=_cmd_replay)
     return parser
 
 

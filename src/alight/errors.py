@@ -15,3 +15,8 @@ class InputError(AlightError):
 
 class EstimationError(AlightError):
     """A filter was fed something it cannot use (non-finite data, wrong shapes)."""
+
+
+class ReplayError(InputError):
+    """A recorded flight (ULog, ROS bag, MCAP) cannot be read or replayed: missing, truncated, corrupt,
+    or without the topics the replay needs."""

@@ -175,16 +175,30 @@ def test_csv_layout(tmp_path):
 
 
 def test_extra_channels_round_trip(tmp_path):
-    log = MissionLog(extra_channels={"yaw_est": 1, "q_WB": 4, "a_WB": 3})
-    log.append(0.0, yaw_est=0.3, q_WB=[0, 0, 0, 1], a_WB=[1, 2, 3])
+    log = MissionLog(extra_channels={"yaw_est": 1, "q_WC": 4, "a_WB": 3, "gain": 4})
+    log.append(0.0, yaw_est=0.3, q_WC=[0, 0, 0, 1], a_WB=[1, 2, 3], gain=[1, 2, 3, 4])
     log.append(0.1, yaw_est=0.4)
     a = log.finalize()
-    assert a["q_WB"].shape == (2, 4) and a["yaw_est"].shape == (2,)
+    assert a["q_WC"].shape == (2, 4) and a["yaw_est"].shape == (2,)
     log.save(tmp_path)
+    header = (tmp_path / "log.csv").read_text().splitlines()[0].split(",")
+    assert [h for h in header if h.startswith("q_WC")] == ["q_WC_x", "q_WC_y", "q_WC_z", "q_WC_w"]
     _assert_same(a, load_arrays(tmp_path, "csv"))
     _assert_same(a, MissionLog.load(tmp_path).finalize())
     with pytest.raises(ValueError):
         MissionLog(extra_channels={"p_WB": 3})
+
+
+def test_attitude_channels_in_csv(tmp_path):
+    """The true and estimated attitude are standard channels, written as q_*_x, _y, _z, _w columns."""
+    log = MissionLog()
+    log.append(0.0, q_WB=[0.0, 0.0, 0.38268343, 0.92387953], q_WB_est=[0.0, 0.0, 0.0, 1.0])
+    log.save(tmp_path)
+    header = (tmp_path / "log.csv").read_text().splitlines()[0].split(",")
+    i = header.index("q_WB_x")
+    assert header[i : i + 8] == [f"q_WB{s}_{a}" for s in ("", "_est") for a in "xyzw"]
+    back = load_arrays(tmp_path, "csv")
+    assert back["q_WB"][0, 2] == 0.38268343 and back["q_WB_est"][0, 3] == 1.0
 
 
 def test_load_errors(tmp_path):

@@ -14,6 +14,8 @@ name                shape     meaning
 ``p_WB, v_WB``      (N, 3)    vehicle position (m) / velocity (m/s) in W, ground truth
 ``p_WB_est``        (N, 3)    vehicle position from the ego estimator (m)
 ``v_WB_est``        (N, 3)    vehicle velocity from the ego estimator (m/s)
+``q_WB``            (N, 4)    vehicle attitude, ground truth, quaternion (x, y, z, w) as SciPy stores it
+``q_WB_est``        (N, 4)    vehicle attitude from the ego estimator, quaternion (x, y, z, w)
 ``p_WP, v_WP``      (N, 3)    platform (pad centre) position / velocity in W, ground truth
 ``p_WP_est``        (N, 3)    platform position from the platform estimator (NaN when none)
 ``v_WP_est``        (N, 3)    platform velocity from the platform estimator (NaN when none)
@@ -53,6 +55,8 @@ CHANNELS: dict[str, int] = {
     "v_WB": 3,
     "p_WB_est": 3,
     "v_WB_est": 3,
+    "q_WB": 4,
+    "q_WB_est": 4,
     "p_WP": 3,
     "v_WP": 3,
     "p_WP_est": 3,
@@ -74,14 +78,18 @@ DETECTIONS_CSV = "log_detections.csv"
 
 _INITIAL_CAPACITY = 1024
 _XYZ = ("x", "y", "z")
+_XYZW = ("x", "y", "z", "w")
 
 
 def column_names(name: str, width: int) -> list[str]:
-    """CSV column names of a channel: ``p_WB -> p_WB_x, p_WB_y, p_WB_z``; ``motor_N -> motor_N_0 ..``."""
+    """CSV column names of a channel: ``p_WB -> p_WB_x, p_WB_y, p_WB_z``; a quaternion ``q_WB -> q_WB_x,
+    q_WB_y, q_WB_z, q_WB_w``; ``motor_N -> motor_N_0 ..``."""
     if width == 1:
         return [name]
     if width == 3:
         return [f"{name}_{a}" for a in _XYZ]
+    if width == 4 and name.startswith("q_"):
+        return [f"{name}_{a}" for a in _XYZW]
     return [f"{name}_{i}" for i in range(width)]
 
 
@@ -438,7 +446,8 @@ def _group_columns(names: list[str]) -> list[tuple[str, list[int]]]:
     """Columns of the CSV (after ``t``, before ``mode``) grouped back into channels.
 
     Standard channels are matched by their known column names; any other run of columns sharing a
-    base name with suffixes ``_x,_y,_z`` or ``_0.._k`` forms one extra channel, anything else a scalar.
+    base name with suffixes ``_x,_y,_z`` (``_x.._w`` for a ``q_`` quaternion) or ``_0.._k`` forms one
+    extra channel, anything else a scalar.
     """
     groups: list[tuple[str, list[int]]] = []
     k = 1  # numeric column index; 0 is t
@@ -458,7 +467,7 @@ def _group_columns(names: list[str]) -> list[tuple[str, list[int]]]:
         m = re.fullmatch(r"(.+)_(x|0)", names[i])
         if m:
             base = m.group(1)
-            for width in (3,) if m.group(2) == "x" else range(len(names) - i, 1, -1):
+            for width in (4, 3) if m.group(2) == "x" else range(len(names) - i, 1, -1):
                 if names[i : i + width] == column_names(base, width):
                     groups.append((base, list(range(k, k + width))))
                     i += width

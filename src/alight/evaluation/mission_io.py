@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ from alight.errors import InputError
 from alight.evaluation.log import save_arrays
 from alight.evaluation.replay import REPLAY_GIF, FrameRecorder, write_replay
 from alight.evaluation.report import write_mission_report
-from alight.evaluation.runner import MissionRun, run_mission
+from alight.evaluation.runner import FrameSink, MissionRun, run_mission
 from alight.scenario import Scenario
 
 RESULT_JSON = "result.json"
@@ -37,18 +38,38 @@ def write_result(out_dir: Path, result: dict[str, Any]) -> Path:
     return path
 
 
+def _fan_out(sinks: Sequence[FrameSink]) -> FrameSink | None:
+    if not sinks:
+        return None
+    if len(sinks) == 1:
+        return sinks[0]
+
+    def sink(t: float, image: Any, observations: Any) -> None:
+        for s in sinks:
+            s(t, image, observations)
+
+    return sink
+
+
 def fly_to_dir(
-    scenario: Scenario, out_dir: str | Path, *, report: bool = True, replay: bool = False
+    scenario: Scenario,
+    out_dir: str | Path,
+    *,
+    report: bool = True,
+    replay: bool = False,
+    frame_sinks: Sequence[FrameSink] = (),
 ) -> MissionRun:
     """Fly ``scenario`` and write its outputs into ``out_dir`` (created if needed); with ``replay`` also
-    the animated replay ``replay.gif`` (camera view with detections beside a top view)."""
+    the animated replay ``replay.gif`` (camera view with detections beside a top view). ``frame_sinks``
+    also see every camera frame (exports such as ``alight fly --mcap``)."""
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
     recorder = FrameRecorder() if replay else None
-    run = run_mission(scenario, record=True, frame_sink=recorder)
+    sinks: list[FrameSink] = [*([recorder] if recorder is not None else []), *frame_sinks]
+    run = run_mission(scenario, record=True, frame_sink=_fan_out(sinks))
     if run.log is None:  # record=True always logs; this guards a future change of run_mission
         raise RuntimeError("run_mission returned no log")
     save_arrays(run.log, out)

@@ -391,6 +391,8 @@ def run_mission(
                 v_WB=v_WB,
                 p_WB_est=ego.p_WB,
                 v_WB_est=ego.v_WB,
+                q_WB=q_WB,
+                q_WB_est=ego.q_WB,
                 p_WP=truth_p[k],
                 v_WP=truth_v[k],
                 p_WP_est=None if target is None else target.p_WP,
