@@ -98,7 +98,7 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     # cluster), so scripts and CI notice; some errors among results still exit 0, with a count line.
     errors, recorded = result.n_recorded_errors, result.n_recorded
     if recorded and errors == recorded:
-        print(f"alight campaign: all {recorded} recorded missions are errors (see error.txt)", file=sys.stderr)
+        print(f"alight campaign: all {recorded} recorded missions are errors (error.txt)", file=sys.stderr)
         return 1
     if errors:
         print(f"alight campaign: {errors} of {recorded} recorded missions are errors", file=sys.stderr)

@@ -62,7 +62,7 @@ def compile_meter() -> Iterator[CompileMeter]:
     stack: list[float] = []
     lock = threading.Lock()
 
-    class _Listener(event.Listener):  # type: ignore[misc]
+    class _Listener(event.Listener):
         def on_start(self, ev: Any) -> None:
             with lock:
                 stack.append(time.process_time())
@@ -80,11 +80,11 @@ def compile_meter() -> Iterator[CompileMeter]:
                 meter.by_kernel[name] = meter.by_kernel.get(name, 0.0) + dt
 
     listener = _Listener()
-    event.register("numba:compile", listener)
+    event.register("numba:compile", listener)  # type: ignore[no-untyped-call]
     try:
         yield meter
     finally:
-        event.unregister("numba:compile", listener)
+        event.unregister("numba:compile", listener)  # type: ignore[no-untyped-call]
 
 
 @dataclass(frozen=True)

@@ -61,7 +61,7 @@ import time
 import traceback
 import uuid
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -292,7 +292,7 @@ def sweep_stale_scratch(root: str | Path | None = None) -> list[Path]:
     process is no longer alive; return them. A directory whose owner pid was reused by another process
     stays until that one ends: the sweep never removes a live owner's directory."""
     base = Path(root) if root is not None else Path(tempfile.gettempdir())
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(base.glob(f"{SCRATCH_PREFIX}*"))
     except OSError:
@@ -443,7 +443,7 @@ class LocalEngine:
         self.warmup = warmup
         """Presets each sandbox warms up before it reports ready (see alight.warmup)."""
 
-    def run(self, tasks: Iterable[MissionTask]) -> Iterator[MissionOutcome]:
+    def run(self, tasks: Iterable[MissionTask]) -> Generator[MissionOutcome, None, None]:
         """Yield one outcome per task, in the order they finish. Closing the generator (or an exception
         such as KeyboardInterrupt inside it) kills every sandbox."""
         queue = deque(tasks)
@@ -491,7 +491,9 @@ class LocalEngine:
                     else:
                         _handshake(b, message)
                         if b.ready and to_start:
-                            boxes.extend(Sandbox(self.fn_spec, sys_path, self.warmup) for _ in range(to_start))
+                            boxes.extend(
+                                Sandbox(self.fn_spec, sys_path, self.warmup) for _ in range(to_start)
+                            )
                             to_start = 0
                 now = time.monotonic()
                 for b in boxes:
@@ -654,7 +656,7 @@ class DaskEngine:
                 signal.signal(signal.SIGINT, previous)
         return distributed.Client(cluster), cluster
 
-    def run(self, tasks: Iterable[MissionTask]) -> Iterator[MissionOutcome]:
+    def run(self, tasks: Iterable[MissionTask]) -> Generator[MissionOutcome, None, None]:
         todo = deque(tasks)
         if not todo:
             return

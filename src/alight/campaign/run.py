@@ -374,7 +374,7 @@ def run_campaign(
                             m.mission_id,
                             None,
                             error="lost: the engine ended without a result for this mission",
-                            details=f"The {runner.name} engine finished without an outcome for {m.mission_id}.\n",
+                            details=f"The {runner.name} engine returned nothing for {m.mission_id}.\n",
                         )
                         with interrupts.critical():
                             store.append(_record(out, campaign, m, lost))
