@@ -286,3 +286,33 @@ def test_first_mission_of_a_fresh_process_pays_no_compile(
     per_s = [float(r["wall_time_s"]) / float(r["simulated_time_s"]) for r in (first, second)]
     assert per_s[0] < 3.0 * per_s[1] + 0.05, per_s
     assert any((tmp_path / "numba-cache").rglob("*.nbi")), "the warm-up compiled into the fresh cache"
+
+
+# -- memory bound ---------------------------------------------------------------------------------------
+
+
+def test_a_sandbox_over_the_memory_limit_is_replaced(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    monkeypatch.setenv(campaign_fakes.PID_DIR_ENV, str(pids))
+    monkeypatch.setenv(campaign_fakes.SLEEP_ENV, "0")
+    campaign = campaign_from_dict(_campaign(seeds_per_condition=3))
+    # 1 MiB: every sandbox is over it after its mission (a Python process alone holds more)
+    result = run_campaign(
+        campaign,
+        tmp_path / "low",
+        workers=1,
+        mission_fn=campaign_fakes.sleepy,
+        report=False,
+        memory_limit_mib=1,
+    )
+    assert result.n_errors == 0 and len(list(pids.iterdir())) == 3  # a fresh process for each mission
+    for p in pids.iterdir():
+        p.unlink()
+    run_campaign(
+        campaign, tmp_path / "high", workers=1, mission_fn=campaign_fakes.sleepy, report=False,
+        memory_limit_mib=1e6,
+    )  # fmt: skip
+    assert len(list(pids.iterdir())) == 1
+    with pytest.raises(ConfigError, match="memory_limit_mib must be > 0"):
+        run_campaign(campaign, tmp_path / "bad", mission_fn=campaign_fakes.sleepy, memory_limit_mib=0)

@@ -104,6 +104,17 @@ class MissionOutcome:
     """Files the mission wrote (path relative to the mission directory -> contents)."""
     wall_time_s: float = 0.0
     """Wall time from the sandbox receiving the mission to its answer (or to the kill)."""
+    max_rss_mib: float | None = None
+    """The sandbox's resident-memory high-water mark after the mission (MiB, since the sandbox started,
+    warm-up included); None when the sandbox did not answer."""
+
+
+def max_rss_mib() -> float:
+    """This process's resident-memory high-water mark (MiB)."""
+    import resource
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes on macOS, KiB on Linux
 
 
 def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
@@ -264,7 +275,9 @@ def worker_main(fd: int) -> None:
         if message[0] != "run":
             return
         try:
-            conn.send(("done", execute(message[1], fn, scratch_root)))
+            outcome = execute(message[1], fn, scratch_root)
+            outcome.max_rss_mib = max_rss_mib()
+            conn.send(("done", outcome))
         except (BrokenPipeError, OSError):
             return
 
@@ -416,6 +429,12 @@ def _death_outcome(box: Sandbox, task: MissionTask, code: int) -> MissionOutcome
     )
 
 
+def _over_memory(outcome: MissionOutcome, limit_mib: float | None) -> bool:
+    """The sandbox that flew ``outcome`` went over ``limit_mib``: it is replaced by a fresh one (the
+    high-water mark never comes down in a living process). The mission itself keeps its result."""
+    return limit_mib is not None and outcome.max_rss_mib is not None and outcome.max_rss_mib > limit_mib
+
+
 def _handshake(box: Sandbox, message: Any) -> None:
     if message[0] == "fatal":
         box.kill()
@@ -433,7 +452,11 @@ class LocalEngine:
     name = "local"
 
     def __init__(
-        self, workers: int | None = None, fn_spec: str = DEFAULT_MISSION_FN, warmup: tuple[str, ...] = ()
+        self,
+        workers: int | None = None,
+        fn_spec: str = DEFAULT_MISSION_FN,
+        warmup: tuple[str, ...] = (),
+        memory_limit_mib: float | None = None,
     ) -> None:
         n = (os.cpu_count() or 1) if workers is None else workers
         if n < 1:
@@ -442,6 +465,9 @@ class LocalEngine:
         self.fn_spec = fn_spec
         self.warmup = warmup
         """Presets each sandbox warms up before it reports ready (see alight.warmup)."""
+        self.memory_limit_mib = _check_limit(memory_limit_mib)
+        """A sandbox whose resident-memory high-water mark is over this after a mission is replaced by a
+        fresh one (None: never)."""
 
     def run(self, tasks: Iterable[MissionTask]) -> Generator[MissionOutcome, None, None]:
         """Yield one outcome per task, in the order they finish. Closing the generator (or an exception
@@ -487,6 +513,9 @@ class LocalEngine:
                         continue
                     if message[0] == "done":
                         b.task, b.deadline = None, float("inf")
+                        if _over_memory(message[1], self.memory_limit_mib):
+                            b.close()  # idle now: a fresh process starts from the imports' footprint
+                            replace.append(b)
                         yield message[1]
                     else:
                         _handshake(b, message)
@@ -523,7 +552,11 @@ _local = threading.local()
 
 
 def _dask_task(
-    task: MissionTask, fn_spec: str, sys_path: list[str] | None, warmup: tuple[str, ...] = ()
+    task: MissionTask,
+    fn_spec: str,
+    sys_path: list[str] | None,
+    warmup: tuple[str, ...] = (),
+    memory_limit_mib: float | None = None,
 ) -> MissionOutcome:
     """Runs in a Dask worker thread: fly ``task`` in this thread's sandbox with the task's deadline."""
     box: Sandbox | None = getattr(_local, "box", None)
@@ -544,6 +577,9 @@ def _dask_task(
         if box.conn.poll(max(0.0, box.deadline - time.monotonic())):
             message = box.conn.recv()
             box.task = None
+            if _over_memory(message[1], memory_limit_mib):
+                _local.box = None
+                box.close()
             return message[1]  # type: ignore[no-any-return]
         _local.box = None
         return _timeout_outcome(box, task)
@@ -587,6 +623,12 @@ def _import_distributed() -> Any:
     return distributed
 
 
+def _check_limit(limit_mib: float | None) -> float | None:
+    if limit_mib is not None and not limit_mib > 0:
+        raise ConfigError(f"memory_limit_mib must be > 0, got {limit_mib}")
+    return limit_mib
+
+
 class DaskEngine:
     """Missions as Dask tasks: on the scheduler at ``scheduler``, or on an embedded ``LocalCluster``
     of ``workers`` processes (one thread each) when no address is given.
@@ -605,7 +647,7 @@ class DaskEngine:
         workers: int | None = None,
         fn_spec: str = DEFAULT_MISSION_FN,
         warmup: tuple[str, ...] = (),
-        memory_limit: str | None = None,
+        memory_limit_mib: float | None = None,
     ) -> None:
         if scheduler and workers is not None:
             # The cluster at the address has the workers it has: alight cannot start more there, and
@@ -621,10 +663,10 @@ class DaskEngine:
         self.workers = n
         self.fn_spec = fn_spec
         self.warmup = warmup
-        self.memory_limit = memory_limit
-        """The embedded cluster's per-worker memory limit (Dask's ``memory_limit``, e.g. ``"2GiB"``):
-        a worker over it is restarted by its nanny; None: Dask's default (the machine's memory shared
-        out)."""
+        self.memory_limit_mib = _check_limit(memory_limit_mib)
+        """A sandbox over this high-water mark after a mission is replaced (as in the local engine); in the
+        embedded cluster it is also each Dask worker's ``memory_limit``, which its nanny enforces by
+        restarting the worker (the worker process itself holds little: the sandbox flies)."""
         _import_distributed()
 
     def _connect(self) -> tuple[Any, Any]:
@@ -649,7 +691,7 @@ class DaskEngine:
                 processes=True,
                 dashboard_address=None,
                 silence_logs=logging.ERROR,
-                memory_limit=self.memory_limit or "auto",
+                memory_limit="auto" if self.memory_limit_mib is None else f"{self.memory_limit_mib}MiB",
             )
         finally:
             if main:
@@ -680,6 +722,7 @@ class DaskEngine:
                     self.fn_spec,
                     sys_path,
                     self.warmup,
+                    self.memory_limit_mib,
                     key=f"alight-{t.mission_id}-{run_id}",
                     pure=False,
                 )
@@ -727,12 +770,14 @@ def make_engine(
     scheduler: str | None = None,
     fn_spec: str = DEFAULT_MISSION_FN,
     warmup: tuple[str, ...] = (),
+    memory_limit_mib: float | None = None,
 ) -> LocalEngine | DaskEngine:
-    """The engine ``name``; ``warmup``: presets every sandbox warms up before its first mission."""
+    """The engine ``name``; ``warmup``: presets every sandbox warms up before its first mission;
+    ``memory_limit_mib``: replace a sandbox whose memory high-water mark goes over it."""
     if name == "local":
         if scheduler:
             raise ConfigError("--scheduler needs --engine dask")
-        return LocalEngine(workers, fn_spec, warmup)
+        return LocalEngine(workers, fn_spec, warmup, memory_limit_mib)
     if name == "dask":
-        return DaskEngine(scheduler, workers, fn_spec, warmup)
+        return DaskEngine(scheduler, workers, fn_spec, warmup, memory_limit_mib)
     raise AlightError(f"unknown engine '{name}', expected one of {list(ENGINES)}")

@@ -312,14 +312,20 @@ def run_campaign(
     progress: bool = False,
     mission_fn: MissionFn | str | None = None,
     report: bool = True,
+    warmup: bool | None = None,
+    memory_limit_mib: float | None = None,
 ) -> CampaignRunResult:
     """Fly every mission of ``campaign`` not yet in ``out_dir/results.csv`` (default ``runs/<name>``).
 
     ``engine``: ``local`` (``workers`` processes, default the CPU count) or ``dask`` (``scheduler`` address,
     or an embedded LocalCluster of ``workers`` processes). ``limit``: only the first ``limit`` missions of
     the campaign's order. ``mission_fn``: what a mission is (default ``engines.fly_mission``), a
-    module-level function or ``"module:function"``. Raises ``AlightError`` for bad input and
-    ``CampaignInterrupted`` on Ctrl-C (after recording what finished and writing summary.json).
+    module-level function or ``"module:function"``. ``warmup``: every sandbox flies a short mission of
+    each of the campaign's presets before its first mission, so numba's compile stays out of the mission
+    clocks (default: only for the default mission function). ``memory_limit_mib``: a worker process whose
+    memory high-water mark is over it after a mission is replaced by a fresh one. Raises ``AlightError``
+    for bad input and ``CampaignInterrupted`` on Ctrl-C (after recording what finished and writing
+    summary.json).
     """
     t0 = time.monotonic()
     if not isinstance(campaign, Campaign):
@@ -328,10 +334,18 @@ def run_campaign(
         raise ConfigError(f"--limit must be >= 1, got {limit}")
     fn_spec = function_spec(mission_fn)
     # Real missions: every sandbox compiles the campaign's presets' kernels before its first mission, so
-    # no mission's clocks or deadline pay for numba's compile. Other mission functions (tests, custom
-    # experiments) decide for themselves.
-    warmup = tuple(campaign.presets) if fn_spec == DEFAULT_MISSION_FN else ()
-    runner = make_engine(engine, workers=workers, scheduler=scheduler, fn_spec=fn_spec, warmup=warmup)
+    # no mission's clocks or deadline pay for numba's compile. Other mission functions (the tests' fakes)
+    # need no warm-up unless asked.
+    if warmup is None:
+        warmup = fn_spec == DEFAULT_MISSION_FN
+    runner = make_engine(
+        engine,
+        workers=workers,
+        scheduler=scheduler,
+        fn_spec=fn_spec,
+        warmup=tuple(campaign.presets) if warmup else (),
+        memory_limit_mib=memory_limit_mib,
+    )
 
     out = Path(out_dir) if out_dir is not None else Path("runs") / campaign.name
     try:
