@@ -105,7 +105,7 @@ def test_a_killed_dask_worker_reflies_only_unrecorded_missions(tmp_path: Path, a
                   "--no-nanny", "--host", "127.0.0.1", "--no-dashboard"]  # fmt: skip
         workers = [_spawn(worker, env, tmp_path / f"worker{i}.log") for i in range(2)]
         procs += workers
-        with Client(address, timeout="60s") as client:
+        with Client(address, timeout="60s") as client:  # type: ignore[no-untyped-call]
             client.wait_for_workers(2, timeout=120)
 
         campaign = campaign_from_dict(_campaign(seeds_per_condition=14))
