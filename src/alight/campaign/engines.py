@@ -18,7 +18,8 @@ With Dask the sandbox lives inside the Dask worker (one per worker thread, kept 
 start-up costs are paid once per worker); a Dask task never blocks the worker's event loop on a hung
 mission and the Dask worker itself is never killed. A Dask worker that dies anyway is Dask's business
 (it reschedules the task; past ``distributed.scheduler.allowed-failures`` the task fails, which also
-becomes an ``error`` outcome).
+becomes an ``error`` outcome). The engine releases each future as soon as its outcome is here, so a dead
+worker makes Dask fly again only the missions it held, never one already recorded.
 
 A sandbox polls its parent's pid and exits when the parent is gone (a SIGKILLed campaign leaves no
 worker behind for long). A sandbox writes nothing where the campaign keeps its results: the files a
