@@ -115,3 +115,34 @@ def warm_up(presets: Iterable[str]) -> WarmupReport:
         for preset in names:
             run_mission(scenario_from_dict(warmup_scenario(preset), "warm-up"), record=True)
     return WarmupReport(names, time.perf_counter() - t0, meter.compile_s, meter.n_signatures)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m alight.warmup [PRESET ...]``: fill numba's cache for the presets (default: all) once,
+    e.g. right after installing, so no later process pays the compile; prints what it took as JSON."""
+    import json
+    import sys
+
+    from alight.mission.presets import PRESETS
+
+    names = (sys.argv[1:] if argv is None else argv) or list(PRESETS)
+    unknown = [n for n in names if n not in PRESETS]
+    if unknown:
+        print(
+            f"alight.warmup: unknown preset {unknown[0]!r}, expected one of {sorted(PRESETS)}",
+            file=sys.stderr,
+        )
+        return 2
+    report = warm_up(names)
+    figures = {
+        "presets": list(report.presets),
+        "wall_s": round(report.wall_s, 2),
+        "compile_s": round(report.compile_s, 2),
+        "signatures": report.n_signatures,
+    }
+    print(json.dumps(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
