@@ -316,3 +316,37 @@ def test_a_sandbox_over_the_memory_limit_is_replaced(tmp_path: Path, monkeypatch
     assert len(list(pids.iterdir())) == 1
     with pytest.raises(ConfigError, match="memory_limit_mib must be > 0"):
         run_campaign(campaign, tmp_path / "bad", mission_fn=campaign_fakes.sleepy, memory_limit_mib=0)
+
+
+# -- one row per mission, whatever an engine does --------------------------------------------------------
+
+
+class _Sloppy:
+    """An engine that repeats its first outcome and never answers for its last mission."""
+
+    name = "sloppy"
+
+    def run(self, tasks: Any) -> Any:
+        from alight.campaign.engines import MissionOutcome
+        from alight.scenario import Scenario
+
+        tasks = list(tasks)
+        outcomes = [
+            MissionOutcome(t.mission_id, campaign_fakes.fake_result(Scenario.model_validate(t.scenario)))
+            for t in tasks[:-1]
+        ]
+        yield from [outcomes[0], *outcomes]
+
+
+def test_a_repeated_outcome_is_ignored_and_a_missing_one_is_an_error_row(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import alight.campaign.run as run_module
+
+    monkeypatch.setattr(run_module, "make_engine", lambda *a, **k: _Sloppy())
+    campaign = campaign_from_dict(_campaign(seeds_per_condition=3))
+    result = run_campaign(campaign, tmp_path, mission_fn=campaign_fakes.instant, report=False)
+    rows = _rows(tmp_path)
+    assert [r["mission_id"] for r in rows] == [m.mission_id for m in campaign.missions]
+    assert rows[-1]["outcome"] == "error" and rows[-1]["error"].startswith("lost: the engine ended")
+    assert (result.n_run, result.n_errors, result.n_recorded, result.n_recorded_errors) == (3, 1, 3, 1)
