@@ -143,6 +143,14 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
         f"campaign {result.campaign}: {done}/{result.n_planned} missions recorded "
         f"({result.n_run} flown now, {result.n_errors} errors) in {result.wall_time_s:.1f} s -> {shown}"
     )
+    # Status 1 when nothing flew (every recorded mission is an error: a broken install, preset or
+    # cluster), so scripts and CI notice; some errors among results still exit 0, with a count line.
+    errors, recorded = result.n_recorded_errors, result.n_recorded
+    if recorded and errors == recorded:
+        print(f"alight campaign: all {recorded} recorded missions are errors (error.txt)", file=sys.stderr)
+        return 1
+    if errors:
+        print(f"alight campaign: {errors} of {recorded} recorded missions are errors", file=sys.stderr)
     return 0
 
 

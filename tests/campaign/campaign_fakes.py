@@ -70,3 +70,26 @@ def by_speed(scenario: Any, out_dir: Path) -> dict[str, Any]:
 
 def not_a_result(scenario: Any, out_dir: Path) -> Any:
     return 42
+
+
+FLIGHT_LOG_ENV = "ALIGHT_FAKE_FLIGHT_LOG"
+
+
+def logged(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """Like ``sleepy``, and leaves one file per flight in ``ALIGHT_FAKE_FLIGHT_LOG``
+    (``<mission name>.<pid>.<time>``): a test counts how many times each mission was flown."""
+    log = os.environ.get(FLIGHT_LOG_ENV)
+    if log:
+        name = scenario.name.split()[-1]
+        (Path(log) / f"{name}.{os.getpid()}.{time.monotonic_ns()}").touch()
+    time.sleep(float(os.environ.get(SLEEP_ENV, "0.3")))
+    return fake_result(scenario)
+
+
+def killed(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """Writes a file into its scratch directory, then SIGKILLs its own process (nothing can clean up)."""
+    import signal
+
+    (out_dir / "partial.txt").write_text("half a mission", encoding="utf-8")
+    os.kill(os.getpid(), signal.SIGKILL)
+    return fake_result(scenario)  # never reached

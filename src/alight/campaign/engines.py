@@ -18,13 +18,25 @@ With Dask the sandbox lives inside the Dask worker (one per worker thread, kept 
 start-up costs are paid once per worker); a Dask task never blocks the worker's event loop on a hung
 mission and the Dask worker itself is never killed. A Dask worker that dies anyway is Dask's business
 (it reschedules the task; past ``distributed.scheduler.allowed-failures`` the task fails, which also
-becomes an ``error`` outcome).
+becomes an ``error`` outcome). The engine releases each future as soon as its outcome is here, so a dead
+worker makes Dask fly again only the missions it held, never one already recorded.
 
 A sandbox polls its parent's pid and exits when the parent is gone (a SIGKILLed campaign leaves no
 worker behind for long). A sandbox writes nothing where the campaign keeps its results: the files a
 mission produces are written into a scratch directory and returned as bytes inside the outcome, and
 the campaign process writes them into ``missions/<id>/``. That keeps a single writer, and works with
 Dask workers on other machines.
+
+Scratch directories live in one directory per sandbox, ``$TMPDIR/alight-box-<owner pid>-*``, made by the
+process that owns the sandbox. The owner removes it when the sandbox is killed, dies or stops (a
+SIGKILLed sandbox cannot clean up after itself); a sandbox whose owner is gone removes it before exiting;
+and the first sandbox a process starts sweeps the directories whose owner pid is no longer alive (owner
+and sandbox both killed at once, e.g. a Dask worker killed with its process group). The owner's pid, not
+the sandbox's, names the directory, because the owner exists before the sandbox and outlives it.
+
+A sandbox running the default mission function warms up before it reports ready
+(:func:`alight.warmup.warm_up`: a short flight of each of the campaign's presets compiles every numba
+kernel they use), so compile time never lands in a mission's ``wall_time_s``, block timers or deadline.
 
 Sandboxes need ``fork``/``exec`` with inherited file descriptors (``pass_fds``): Linux and macOS.
 
@@ -37,6 +49,7 @@ the sandbox imports it.
 
 from __future__ import annotations
 
+import asyncio
 import os
 import shutil
 import signal
@@ -49,18 +62,22 @@ import time
 import traceback
 import uuid
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
-from alight.errors import AlightError
+from alight.errors import AlightError, ConfigError
 
 DEFAULT_MISSION_FN = "alight.campaign.engines:fly_mission"
 ENGINES = ("local", "dask")
-STARTUP_TIMEOUT_S = 300.0
-"""A sandbox that has not imported its mission function after this long is treated as broken (s)."""
+STARTUP_TIMEOUT_S = 900.0
+"""A sandbox that is not ready (imports and warm-up done) after this long is treated as broken (s). The
+warm-up compiles numba kernels when the cache is cold: about 30 s of CPU per preset, minutes of wall time on
+a busy machine."""
+SCRATCH_PREFIX = "alight-box-"
+"""Name of a sandbox's scratch directory in the temporary directory: ``alight-box-<owner pid>-<random>``."""
 PARENT_POLL_S = 0.5
 
 MissionFn = Callable[[Any, Path], dict[str, Any]]
@@ -88,6 +105,17 @@ class MissionOutcome:
     """Files the mission wrote (path relative to the mission directory -> contents)."""
     wall_time_s: float = 0.0
     """Wall time from the sandbox receiving the mission to its answer (or to the kill)."""
+    max_rss_mib: float | None = None
+    """The sandbox's resident-memory high-water mark after the mission (MiB, since the sandbox started,
+    warm-up included); None when the sandbox did not answer."""
+
+
+def max_rss_mib() -> float:
+    """This process's resident-memory high-water mark (MiB)."""
+    import resource
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes on macOS, KiB on Linux
 
 
 def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
@@ -163,12 +191,13 @@ def _collect_files(root: Path) -> dict[str, bytes]:
     return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
-def execute(task: MissionTask, fn: MissionFn) -> MissionOutcome:
-    """Fly one mission in this process; every exception becomes an error outcome."""
+def execute(task: MissionTask, fn: MissionFn, scratch_root: str | None = None) -> MissionOutcome:
+    """Fly one mission in this process; every exception becomes an error outcome. The mission's scratch
+    directory is made in ``scratch_root`` (default: the temporary directory)."""
     from alight.scenario import Scenario
 
     t0 = time.perf_counter()
-    scratch = Path(tempfile.mkdtemp(prefix=f"alight-{task.mission_id}-"))
+    scratch = Path(tempfile.mkdtemp(prefix=f"alight-{task.mission_id}-", dir=scratch_root))
     try:
         scenario = Scenario.model_validate(task.scenario)
         result = fn(scenario, scratch)
@@ -189,11 +218,14 @@ def execute(task: MissionTask, fn: MissionFn) -> MissionOutcome:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
-def _watch_parent(ppid: int) -> None:
+def _watch_parent(ppid: int, scratch_root: str | None) -> None:
     def loop() -> None:
         while True:
             time.sleep(PARENT_POLL_S)
             if os.getppid() != ppid:
+                # The owner, which would have removed it, is gone.
+                if scratch_root:
+                    shutil.rmtree(scratch_root, ignore_errors=True)
                 os._exit(0)
 
     threading.Thread(target=loop, name="alight-parent-watch", daemon=True).start()
@@ -203,11 +235,12 @@ def worker_main(fd: int) -> None:
     """Entry point of a sandbox process: serve missions on the socket ``fd`` until it closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the campaign process decides what a Ctrl-C stops
     conn = Connection(fd)
-    _watch_parent(os.getppid())
     try:
-        _, sys_path, fn_name = conn.recv()  # plain strings: safe to unpickle before sys.path is set
+        # plain strings and lists of them: safe to unpickle before sys.path is set
+        _, sys_path, fn_name, scratch_root, warmup = conn.recv()
     except EOFError:
         return
+    _watch_parent(os.getppid(), scratch_root)
     if sys_path:
         sys.path[:] = list(sys_path)
     try:
@@ -223,7 +256,18 @@ def worker_main(fd: int) -> None:
     except BaseException as err:  # noqa: BLE001  (reported to the owner, which stops the campaign)
         conn.send(("fatal", _one_line(err)))
         return
-    conn.send(("ready", os.getpid()))
+    warmed: dict[str, Any] = {}
+    if warmup:
+        # Compile before "ready": a mission's clocks and deadline start after this. A preset whose
+        # warm-up flight fails is not fatal: its missions will say what is wrong, each in its own row.
+        from alight.warmup import warm_up
+
+        try:
+            report = warm_up(warmup)
+            warmed = {"wall_s": report.wall_s, "compile_s": report.compile_s}
+        except Exception as err:  # noqa: BLE001
+            warmed = {"error": _one_line(err)}
+    conn.send(("ready", os.getpid(), warmed))
     while True:
         try:
             message = conn.recv()
@@ -232,7 +276,9 @@ def worker_main(fd: int) -> None:
         if message[0] != "run":
             return
         try:
-            conn.send(("done", execute(message[1], fn)))
+            outcome = execute(message[1], fn, scratch_root)
+            outcome.max_rss_mib = max_rss_mib()
+            conn.send(("done", outcome))
         except (BrokenPipeError, OSError):
             return
 
@@ -245,10 +291,45 @@ _LIVE: set[Sandbox] = set()
 """Sandboxes of this process that are not reaped yet (their process group ids are still theirs)."""
 
 
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def sweep_stale_scratch(root: str | Path | None = None) -> list[Path]:
+    """Remove the sandbox scratch directories in ``root`` (default: the temporary directory) whose owner
+    process is no longer alive; return them. A directory whose owner pid was reused by another process
+    stays until that one ends: the sweep never removes a live owner's directory."""
+    base = Path(root) if root is not None else Path(tempfile.gettempdir())
+    removed: list[Path] = []
+    try:
+        entries = list(base.glob(f"{SCRATCH_PREFIX}*"))
+    except OSError:
+        return removed
+    for path in entries:
+        owner = path.name[len(SCRATCH_PREFIX) :].split("-", 1)[0]
+        if owner.isdigit() and int(owner) != os.getpid() and not _pid_alive(int(owner)):
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
+
+
+_SWEPT = threading.Event()
+
+
 class Sandbox:
     """A child process that flies missions; owned by one thread of one process."""
 
-    def __init__(self, fn_spec: str, sys_path: list[str] | None) -> None:
+    def __init__(self, fn_spec: str, sys_path: list[str] | None, warmup: tuple[str, ...] = ()) -> None:
+        if not _SWEPT.is_set():  # once per owning process, on the machine where its sandboxes run
+            _SWEPT.set()
+            sweep_stale_scratch()
+        self.scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-"))
         ours, theirs = socket.socketpair()
         try:
             self.proc = subprocess.Popen(
@@ -259,13 +340,14 @@ class Sandbox:
             )
         except BaseException:
             ours.close()
+            shutil.rmtree(self.scratch, ignore_errors=True)
             raise
         finally:
             theirs.close()
         with _LIVE_LOCK:
             _LIVE.add(self)
         self.conn = Connection(ours.detach())
-        self.conn.send(("init", sys_path, fn_spec))
+        self.conn.send(("init", sys_path, fn_spec, str(self.scratch), list(warmup)))
         self.ready = False
         self.started = time.monotonic()
         self.task: MissionTask | None = None
@@ -294,6 +376,7 @@ class Sandbox:
             code = self.proc.wait()  # prompt after SIGKILL
             _LIVE.discard(self)
         self.conn.close()
+        shutil.rmtree(self.scratch, ignore_errors=True)  # a killed sandbox cannot remove it itself
         return code
 
     def close(self) -> None:
@@ -347,6 +430,12 @@ def _death_outcome(box: Sandbox, task: MissionTask, code: int) -> MissionOutcome
     )
 
 
+def _over_memory(outcome: MissionOutcome, limit_mib: float | None) -> bool:
+    """The sandbox that flew ``outcome`` went over ``limit_mib``: it is replaced by a fresh one (the
+    high-water mark never comes down in a living process). The mission itself keeps its result."""
+    return limit_mib is not None and outcome.max_rss_mib is not None and outcome.max_rss_mib > limit_mib
+
+
 def _handshake(box: Sandbox, message: Any) -> None:
     if message[0] == "fatal":
         box.kill()
@@ -363,21 +452,38 @@ class LocalEngine:
 
     name = "local"
 
-    def __init__(self, workers: int | None = None, fn_spec: str = DEFAULT_MISSION_FN) -> None:
+    def __init__(
+        self,
+        workers: int | None = None,
+        fn_spec: str = DEFAULT_MISSION_FN,
+        warmup: tuple[str, ...] = (),
+        memory_limit_mib: float | None = None,
+    ) -> None:
         n = (os.cpu_count() or 1) if workers is None else workers
         if n < 1:
             raise AlightError(f"--workers must be >= 1, got {n}")
         self.workers = n
         self.fn_spec = fn_spec
+        self.warmup = warmup
+        """Presets each sandbox warms up before it reports ready (see alight.warmup)."""
+        self.memory_limit_mib = _check_limit(memory_limit_mib)
+        """A sandbox whose resident-memory high-water mark is over this after a mission is replaced by a
+        fresh one (None: never)."""
 
-    def run(self, tasks: Iterable[MissionTask]) -> Iterator[MissionOutcome]:
+    def run(self, tasks: Iterable[MissionTask]) -> Generator[MissionOutcome, None, None]:
         """Yield one outcome per task, in the order they finish. Closing the generator (or an exception
         such as KeyboardInterrupt inside it) kills every sandbox."""
         queue = deque(tasks)
         if not queue:
             return
         sys_path = list(sys.path)
-        boxes: list[Sandbox] = [Sandbox(self.fn_spec, sys_path) for _ in range(min(self.workers, len(queue)))]
+        # With a warm-up, the first sandbox starts alone: it compiles into numba's cache, and the others,
+        # started once it is ready, load from there instead of each compiling the same kernels at once.
+        n_boxes = min(self.workers, len(queue))
+        boxes: list[Sandbox] = [
+            Sandbox(self.fn_spec, sys_path, self.warmup) for _ in range(1 if self.warmup else n_boxes)
+        ]
+        to_start = n_boxes - len(boxes)
         try:
             while queue or any(b.task is not None for b in boxes):
                 for b in boxes:
@@ -408,9 +514,17 @@ class LocalEngine:
                         continue
                     if message[0] == "done":
                         b.task, b.deadline = None, float("inf")
+                        if _over_memory(message[1], self.memory_limit_mib):
+                            b.close()  # idle now: a fresh process starts from the imports' footprint
+                            replace.append(b)
                         yield message[1]
                     else:
                         _handshake(b, message)
+                        if b.ready and to_start:
+                            boxes.extend(
+                                Sandbox(self.fn_spec, sys_path, self.warmup) for _ in range(to_start)
+                            )
+                            to_start = 0
                 now = time.monotonic()
                 for b in boxes:
                     if b in replace:
@@ -424,7 +538,7 @@ class LocalEngine:
                 for b in replace:
                     boxes.remove(b)
                     if queue:
-                        boxes.append(Sandbox(self.fn_spec, sys_path))
+                        boxes.append(Sandbox(self.fn_spec, sys_path, self.warmup))
         finally:
             for b in boxes:
                 if b.task is None and b.ready:
@@ -438,17 +552,22 @@ class LocalEngine:
 _local = threading.local()
 
 
-def _dask_task(task: MissionTask, fn_spec: str, sys_path: list[str] | None) -> MissionOutcome:
+def _dask_task(
+    task: MissionTask,
+    fn_spec: str,
+    sys_path: list[str] | None,
+    warmup: tuple[str, ...] = (),
+    memory_limit_mib: float | None = None,
+) -> MissionOutcome:
     """Runs in a Dask worker thread: fly ``task`` in this thread's sandbox with the task's deadline."""
     box: Sandbox | None = getattr(_local, "box", None)
-    if box is not None and (
-        getattr(_local, "key", None) != (fn_spec, tuple(sys_path or ())) or box.proc.poll() is not None
-    ):
-        box.close()  # another mission function, or the sandbox died while idle
+    key = (fn_spec, tuple(sys_path or ()), tuple(warmup))
+    if box is not None and (getattr(_local, "key", None) != key or box.proc.poll() is not None):
+        box.close()  # another mission function or campaign, or the sandbox died while idle
         box = None
     if box is None:
-        box = Sandbox(fn_spec, sys_path)
-        _local.box, _local.key = box, (fn_spec, tuple(sys_path or ()))
+        box = Sandbox(fn_spec, sys_path, warmup)
+        _local.box, _local.key = box, key
     try:
         while not box.ready:
             left = box.started + STARTUP_TIMEOUT_S - time.monotonic()
@@ -459,6 +578,9 @@ def _dask_task(task: MissionTask, fn_spec: str, sys_path: list[str] | None) -> M
         if box.conn.poll(max(0.0, box.deadline - time.monotonic())):
             message = box.conn.recv()
             box.task = None
+            if _over_memory(message[1], memory_limit_mib):
+                _local.box = None
+                box.close()
             return message[1]  # type: ignore[no-any-return]
         _local.box = None
         return _timeout_outcome(box, task)
@@ -488,6 +610,7 @@ def stop_sandboxes() -> int:
             if box.task is None:  # nobody waits on an idle one: reap it here
                 box.proc.wait()
                 _LIVE.discard(box)
+                shutil.rmtree(box.scratch, ignore_errors=True)
     return len(boxes)
 
 
@@ -501,21 +624,50 @@ def _import_distributed() -> Any:
     return distributed
 
 
+def _check_limit(limit_mib: float | None) -> float | None:
+    if limit_mib is not None and not limit_mib > 0:
+        raise ConfigError(f"memory_limit_mib must be > 0, got {limit_mib}")
+    return limit_mib
+
+
 class DaskEngine:
     """Missions as Dask tasks: on the scheduler at ``scheduler``, or on an embedded ``LocalCluster``
-    of ``workers`` processes (one thread each) when no address is given."""
+    of ``workers`` processes (one thread each) when no address is given.
+
+    At most ``2 x`` the cluster's worker threads missions are submitted at a time, and each future is
+    released as soon as its outcome is in this process (before the campaign writes its row). So results
+    do not pile up in worker memory, and when a worker dies Dask recomputes only the missions it was
+    flying, never one already recorded (a held future whose result lived on the dead worker would be
+    flown again)."""
 
     name = "dask"
 
     def __init__(
-        self, scheduler: str | None = None, workers: int | None = None, fn_spec: str = DEFAULT_MISSION_FN
+        self,
+        scheduler: str | None = None,
+        workers: int | None = None,
+        fn_spec: str = DEFAULT_MISSION_FN,
+        warmup: tuple[str, ...] = (),
+        memory_limit_mib: float | None = None,
     ) -> None:
+        if scheduler and workers is not None:
+            # The cluster at the address has the workers it has: alight cannot start more there, and
+            # silently ignoring the number would make two runs look comparable when they are not.
+            raise ConfigError(
+                "--workers sets the size of the embedded Dask cluster and cannot be used with --scheduler "
+                "(the cluster's own workers fly the missions)"
+            )
         self.scheduler = scheduler
         n = (os.cpu_count() or 1) if workers is None else workers
         if n < 1:
             raise AlightError(f"--workers must be >= 1, got {n}")
         self.workers = n
         self.fn_spec = fn_spec
+        self.warmup = warmup
+        self.memory_limit_mib = _check_limit(memory_limit_mib)
+        """A sandbox over this high-water mark after a mission is replaced (as in the local engine); in the
+        embedded cluster it is also each Dask worker's ``memory_limit``, which its nanny enforces by
+        restarting the worker (the worker process itself holds little: the sandbox flies)."""
         _import_distributed()
 
     def _connect(self) -> tuple[Any, Any]:
@@ -540,33 +692,53 @@ class DaskEngine:
                 processes=True,
                 dashboard_address=None,
                 silence_logs=logging.ERROR,
+                memory_limit="auto" if self.memory_limit_mib is None else f"{self.memory_limit_mib}MiB",
             )
         finally:
             if main:
                 signal.signal(signal.SIGINT, previous)
         return distributed.Client(cluster), cluster
 
-    def run(self, tasks: Iterable[MissionTask]) -> Iterator[MissionOutcome]:
-        todo = list(tasks)
+    def run(self, tasks: Iterable[MissionTask]) -> Generator[MissionOutcome, None, None]:
+        todo = deque(tasks)
         if not todo:
             return
         distributed = _import_distributed()
         client, cluster = self._connect()
         # An embedded cluster runs on this machine: its sandboxes import from this process's sys.path.
         sys_path = None if cluster is None else list(sys.path)
-        futures: dict[Any, MissionTask] = {}
-        try:
-            run_id = uuid.uuid4().hex[:8]
-            for t in todo:
+        live: dict[Any, MissionTask] = {}
+        run_id = uuid.uuid4().hex[:8]
+        completed = distributed.as_completed()
+
+        def top_up() -> None:
+            # Enough queued to keep every worker thread busy (and one more each, so a worker never waits
+            # for the round trip); the cluster may grow or shrink while the campaign runs.
+            window = 2 * max(1, sum(client.nthreads().values()))
+            while todo and len(live) < window:
+                t = todo.popleft()
                 f = client.submit(
-                    _dask_task, t, self.fn_spec, sys_path, key=f"alight-{t.mission_id}-{run_id}", pure=False
+                    _dask_task,
+                    t,
+                    self.fn_spec,
+                    sys_path,
+                    self.warmup,
+                    self.memory_limit_mib,
+                    key=f"alight-{t.mission_id}-{run_id}",
+                    pure=False,
                 )
-                futures[f] = t
-            for f in distributed.as_completed(list(futures)):
-                task = futures[f]
+                live[f] = t
+                completed.add(f)
+
+        try:
+            top_up()
+            for f in completed:
+                task = live.pop(f)
                 try:
                     outcome = f.result()
-                except Exception as err:  # a Dask-level failure (e.g. KilledWorker) of this mission only
+                except (Exception, asyncio.CancelledError) as err:
+                    # A Dask-level failure of this mission only: KilledWorker after its workers died more
+                    # than distributed.scheduler.allowed-failures times, or a cancellation.
                     if isinstance(err, AlightError):
                         raise
                     outcome = MissionOutcome(
@@ -575,10 +747,15 @@ class DaskEngine:
                         error=f"dask task failed: {_one_line(err)}",
                         details="".join(traceback.format_exception(err)),
                     )
+                # The outcome is here: from now on the cluster must forget the mission, or a worker death
+                # would make Dask fly it again to restore a result nobody needs.
+                f.release()
+                del f
+                top_up()
                 yield outcome
         finally:
             try:
-                client.cancel(list(futures), force=True)
+                client.cancel(list(live), force=True)
                 client.run(stop_sandboxes)
             except Exception:  # noqa: BLE001  (shutting down; the client may already be gone)
                 pass
@@ -588,12 +765,20 @@ class DaskEngine:
 
 
 def make_engine(
-    name: str, *, workers: int | None = None, scheduler: str | None = None, fn_spec: str = DEFAULT_MISSION_FN
+    name: str,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    fn_spec: str = DEFAULT_MISSION_FN,
+    warmup: tuple[str, ...] = (),
+    memory_limit_mib: float | None = None,
 ) -> LocalEngine | DaskEngine:
+    """The engine ``name``; ``warmup``: presets every sandbox warms up before its first mission;
+    ``memory_limit_mib``: replace a sandbox whose memory high-water mark goes over it."""
     if name == "local":
         if scheduler:
-            raise AlightError("--scheduler needs --engine dask")
-        return LocalEngine(workers, fn_spec)
+            raise ConfigError("--scheduler needs --engine dask")
+        return LocalEngine(workers, fn_spec, warmup, memory_limit_mib)
     if name == "dask":
-        return DaskEngine(scheduler, workers, fn_spec)
+        return DaskEngine(scheduler, workers, fn_spec, warmup, memory_limit_mib)
     raise AlightError(f"unknown engine '{name}', expected one of {list(ENGINES)}")

@@ -22,7 +22,14 @@ from typing import Any, TextIO
 import yaml
 
 import alight
-from alight.campaign.engines import MissionFn, MissionOutcome, MissionTask, function_spec, make_engine
+from alight.campaign.engines import (
+    DEFAULT_MISSION_FN,
+    MissionFn,
+    MissionOutcome,
+    MissionTask,
+    function_spec,
+    make_engine,
+)
 from alight.campaign.spec import Campaign, PlannedMission, load_campaign
 from alight.campaign.store import (
     BLOCK_TIME_COLUMN,
@@ -59,10 +66,16 @@ class CampaignRunResult:
     n_errors: int
     """Error rows recorded by this run."""
     wall_time_s: float
+    """Wall time of the whole run (s)."""
     summary_path: Path | None
     report_path: Path | None = None
     report_error: str | None = None
     """One line when the campaign report could not be written (the results are complete regardless)."""
+    n_recorded: int = 0
+    """Rows of this campaign's missions (after ``limit``) in results.csv once the run ended, earlier runs'
+    included."""
+    n_recorded_errors: int = 0
+    """Of those, error rows. ``alight campaign`` exits with status 1 when they are all errors."""
 
 
 class CampaignInterrupted(KeyboardInterrupt):
@@ -299,14 +312,20 @@ def run_campaign(
     progress: bool = False,
     mission_fn: MissionFn | str | None = None,
     report: bool = True,
+    warmup: bool | None = None,
+    memory_limit_mib: float | None = None,
 ) -> CampaignRunResult:
     """Fly every mission of ``campaign`` not yet in ``out_dir/results.csv`` (default ``runs/<name>``).
 
     ``engine``: ``local`` (``workers`` processes, default the CPU count) or ``dask`` (``scheduler`` address,
     or an embedded LocalCluster of ``workers`` processes). ``limit``: only the first ``limit`` missions of
     the campaign's order. ``mission_fn``: what a mission is (default ``engines.fly_mission``), a
-    module-level function or ``"module:function"``. Raises ``AlightError`` for bad input and
-    ``CampaignInterrupted`` on Ctrl-C (after recording what finished and writing summary.json).
+    module-level function or ``"module:function"``. ``warmup``: every sandbox flies a short mission of
+    each of the campaign's presets before its first mission, so numba's compile stays out of the mission
+    clocks (default: only for the default mission function). ``memory_limit_mib``: a worker process whose
+    memory high-water mark is over it after a mission is replaced by a fresh one. Raises ``AlightError``
+    for bad input and ``CampaignInterrupted`` on Ctrl-C (after recording what finished and writing
+    summary.json).
     """
     t0 = time.monotonic()
     if not isinstance(campaign, Campaign):
@@ -314,7 +333,19 @@ def run_campaign(
     if limit is not None and limit < 1:
         raise ConfigError(f"--limit must be >= 1, got {limit}")
     fn_spec = function_spec(mission_fn)
-    runner = make_engine(engine, workers=workers, scheduler=scheduler, fn_spec=fn_spec)
+    # Real missions: every sandbox compiles the campaign's presets' kernels before its first mission, so
+    # no mission's clocks or deadline pay for numba's compile. Other mission functions (the tests' fakes)
+    # need no warm-up unless asked.
+    if warmup is None:
+        warmup = fn_spec == DEFAULT_MISSION_FN
+    runner = make_engine(
+        engine,
+        workers=workers,
+        scheduler=scheduler,
+        fn_spec=fn_spec,
+        warmup=tuple(campaign.presets) if warmup else (),
+        memory_limit_mib=memory_limit_mib,
+    )
 
     out = Path(out_dir) if out_dir is not None else Path("runs") / campaign.name
     try:
@@ -342,12 +373,28 @@ def run_campaign(
             try:
                 bar.show()
                 for outcome in outcomes:
+                    if outcome.mission_id in store.done:  # one row per mission, whatever an engine repeats
+                        continue
                     with interrupts.critical():
                         row = _record(out, campaign, by_id[outcome.mission_id], outcome)
                         store.append(row)
                     n_run += 1
                     n_errors += int(row["outcome"] == "error")
                     bar.update(row["outcome"] == "error")
+                # Never silently drop a mission: one the engine gave no outcome for is an error row.
+                for m in pending:
+                    if m.mission_id not in store.done:
+                        lost = MissionOutcome(
+                            m.mission_id,
+                            None,
+                            error="lost: the engine ended without a result for this mission",
+                            details=f"The {runner.name} engine returned nothing for {m.mission_id}.\n",
+                        )
+                        with interrupts.critical():
+                            store.append(_record(out, campaign, m, lost))
+                        n_run += 1
+                        n_errors += 1
+                        bar.update(True)
             except KeyboardInterrupt:
                 interrupted = True
             finally:
@@ -364,6 +411,10 @@ def run_campaign(
                 wall_time_s=0.0,
                 summary_path=None,
             )
+            ours = {m.mission_id for m in missions}
+            recorded = [r for r in store.rows if r["mission_id"] in ours]
+            result.n_recorded = len(recorded)
+            result.n_recorded_errors = sum(r["outcome"] == "error" for r in recorded)
             result.summary_path = write_summary(out)
             if interrupted:
                 result.wall_time_s = time.monotonic() - t0

@@ -220,6 +220,9 @@ class CandidatePlanner:
         self._limits = np.array([c.f_min, c.f_max, c.w_max, c.min_section_s])
         self._zero_af = np.zeros((1, 3))
         self._zero_packed = np.zeros((9, 3))
+        # read-only like every trajectory's _packed, which takes its place once there is a plan: one
+        # compiled signature of _plan_kernel for both
+        self._zero_packed.flags.writeable = False
         self._previous: MinJerkTrajectory | None = None
 
     @property
@@ -263,9 +266,12 @@ class CandidatePlanner:
         ``|new(t_c).p - current(t_c).p| < adopt_threshold_m``.
         """
         c = self.config
-        P0 = np.ascontiguousarray(p0, dtype=np.float64)
-        V0 = np.ascontiguousarray(v0, dtype=np.float64)
-        A0 = np.ascontiguousarray(a0, dtype=np.float64)
+        # Fresh writable copies (3 floats each): numba compiles one signature per read-only flag, and the
+        # state arrives read-only (a frozen EgoState) or writable depending on the caller; always writable
+        # keeps _plan_kernel (and the kernels it calls) to one compiled signature instead of three.
+        P0 = np.array(p0, dtype=np.float64)
+        V0 = np.array(v0, dtype=np.float64)
+        A0 = np.array(a0, dtype=np.float64)
         te = np.ascontiguousarray(end_times, dtype=np.float64)
         PF = np.ascontiguousarray(p_end, dtype=np.float64)
         VF = np.ascontiguousarray(v_end, dtype=np.float64)

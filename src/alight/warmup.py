@@ -1,0 +1,148 @@
+"""Warm-up: compile every numba kernel a preset uses before any mission's clock starts.
+
+alight's inner loops are numba kernels, compiled on their first call. Uncompiled, the first mission of a
+process pays for the compile in its ``wall_time_s``, its block timers and its wall-clock ``timeout_s``
+(the detector once showed 2,503 ms per simulated second instead of 43). So a campaign's sandbox calls
+:func:`warm_up` before it reports ready: the mission clocks then start after every kernel is compiled.
+
+The warm-up flies a short mission of each preset (a platform that drives past the take-off point, so
+the flight goes through take-off, exploration, detection, tracking and the landing approach) rather
+than calling each kernel on tiny inputs: a flight compiles exactly the signatures (dtypes, layouts,
+read-only flags) that missions use, and stays right when a kernel or its caller changes. Its results
+are thrown away; it changes no state that a later mission sees (every mission builds its own world and
+pipeline from its scenario).
+
+Every ``@njit`` in alight has ``cache=True``, so the compile happens once per install: later processes
+load the machine code from numba's cache (milliseconds per kernel). Where the cache goes is numba's
+choice: ``NUMBA_CACHE_DIR`` when set, else ``__pycache__`` beside the source when it is writable, else the
+user-wide cache directory (``~/.cache/numba`` on Linux), so a read-only site-packages install caches too.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+WARMUP_DURATION_S = 12.0
+"""Simulated seconds of each warm-up flight: the groundtruth preset is on its landing approach by then."""
+
+_WARMUP_BASE: dict[str, Any] = {
+    "name": "warm-up",
+    "seed": 0,
+    "duration_s": WARMUP_DURATION_S,
+    # Driving toward the take-off point: the pad is under the camera within a few seconds.
+    "platform": {"path": "straight", "speed_mps": 1.0, "start_xy": [6.0, 2.0], "heading_rad": 3.14},
+}
+
+
+@dataclass
+class CompileMeter:
+    """numba compile work seen while the meter is installed (see :func:`compile_meter`)."""
+
+    compile_s: float = 0.0
+    """CPU time (s, this process) spent compiling, outermost compiles only (a kernel's callees are part of
+    its compile). CPU rather than wall time, so a busy machine does not inflate it."""
+    n_signatures: int = 0
+    """Signatures compiled, callees included (cache misses)."""
+    by_kernel: dict[str, float] = field(default_factory=dict)
+    """Outermost kernel ``module.qualname`` -> CPU seconds of its compile."""
+
+
+@contextmanager
+def compile_meter() -> Iterator[CompileMeter]:
+    """Measure numba compiles in this process while the block runs (loads from the cache do not count:
+    numba signals ``numba:compile`` only on a cache miss)."""
+    from numba.core import event
+
+    meter = CompileMeter()
+    stack: list[float] = []
+    lock = threading.Lock()
+
+    class _Listener(event.Listener):
+        def on_start(self, ev: Any) -> None:
+            with lock:
+                stack.append(time.process_time())
+
+        def on_end(self, ev: Any) -> None:
+            with lock:
+                t0 = stack.pop()
+                meter.n_signatures += 1
+                if stack:
+                    return
+                dt = time.process_time() - t0
+                meter.compile_s += dt
+                fn = ev.data["dispatcher"].py_func
+                name = f"{fn.__module__}.{fn.__qualname__}"
+                meter.by_kernel[name] = meter.by_kernel.get(name, 0.0) + dt
+
+    listener = _Listener()
+    event.register("numba:compile", listener)  # type: ignore[no-untyped-call]
+    try:
+        yield meter
+    finally:
+        event.unregister("numba:compile", listener)  # type: ignore[no-untyped-call]
+
+
+@dataclass(frozen=True)
+class WarmupReport:
+    presets: tuple[str, ...]
+    wall_s: float
+    """Wall time of the whole warm-up (s)."""
+    compile_s: float
+    """CPU time numba spent compiling (s); near 0 when every kernel came from the cache."""
+    n_signatures: int
+    """Signatures compiled (0 with a warm cache)."""
+
+
+def warmup_scenario(preset: str) -> dict[str, Any]:
+    """The warm-up flight of ``preset``, as scenario data."""
+    return {**_WARMUP_BASE, "preset": preset, "name": f"warm-up {preset}"}
+
+
+def warm_up(presets: Iterable[str]) -> WarmupReport:
+    """Fly the warm-up mission of each preset (in the order given, each once); see the module docstring.
+    Raises what the mission raises (a preset that cannot fly here cannot fly a campaign's missions either)."""
+    from alight.evaluation.runner import run_mission
+    from alight.scenario import scenario_from_dict
+
+    names = tuple(dict.fromkeys(presets))
+    t0 = time.perf_counter()
+    with compile_meter() as meter:
+        for preset in names:
+            run_mission(scenario_from_dict(warmup_scenario(preset), "warm-up"), record=True)
+    return WarmupReport(names, time.perf_counter() - t0, meter.compile_s, meter.n_signatures)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m alight.warmup [PRESET ...]``: fill numba's cache for the presets (default: all) once,
+    e.g. right after installing, so no later process pays the compile; prints what it took as JSON."""
+    import json
+    import sys
+
+    from alight.mission.presets import PRESETS
+
+    names = (sys.argv[1:] if argv is None else argv) or list(PRESETS)
+    unknown = [n for n in names if n not in PRESETS]
+    if unknown:
+        print(
+            f"alight.warmup: unknown preset {unknown[0]!r}, expected one of {sorted(PRESETS)}",
+            file=sys.stderr,
+        )
+        return 2
+    report = warm_up(names)
+    figures = {
+        "presets": list(report.presets),
+        "wall_s": round(report.wall_s, 2),
+        "compile_s": round(report.compile_s, 2),
+        "signatures": report.n_signatures,
+    }
+    print(json.dumps(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
