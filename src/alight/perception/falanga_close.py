@@ -79,6 +79,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.numerics.histogram import histogram_quantile
 from alight.numerics.homography import homography_lsq, map_point
 from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
@@ -186,16 +187,8 @@ def _dark_runs(img, min_contrast, dark_frac):  # type: ignore[no-untyped-def]  #
         for j in range(0, w, 2):
             hist[img[i, j]] += 1
     total = hist.sum()
-    acc = 0
-    p_lo = -1
-    p_hi = 255
-    for v in range(256):
-        acc += hist[v]
-        if p_lo < 0 and acc >= 0.02 * total:
-            p_lo = v
-        if acc >= 0.98 * total:
-            p_hi = v
-            break
+    p_lo = histogram_quantile(hist, total, 0.02)
+    p_hi = histogram_quantile(hist, total, 0.98)
     cap = h * ((w + 1) // 2) + 1
     row = np.empty(cap, np.int32)
     x0 = np.empty(cap, np.int32)

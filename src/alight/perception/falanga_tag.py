@@ -82,6 +82,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.numerics.histogram import histogram_quantile
 from alight.numerics.homography import apply_homography, homography_4pt, ransac_homography
 from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
@@ -217,19 +218,9 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # t
             P[ti + 1, tj + 1] = rowsum[tj] + P[ti, tj + 1] + P[ti + 1, tj] - P[ti, tj]
             Cn[ti + 1, tj + 1] = c + Cn[ti, tj + 1] + Cn[ti + 1, tj] - Cn[ti, tj]
     total = hist.sum()
-    acc = 0
-    p2 = -1
-    p50 = -1
-    p98 = 255
-    for v in range(256):
-        acc += hist[v]
-        if p2 < 0 and acc >= 0.02 * total:
-            p2 = v
-        if p50 < 0 and acc >= 0.5 * total:
-            p50 = v
-        if acc >= 0.98 * total:
-            p98 = v
-            break
+    p2 = histogram_quantile(hist, total, 0.02)
+    p50 = histogram_quantile(hist, total, 0.5)
+    p98 = histogram_quantile(hist, total, 0.98)
     offset = max(offset_min, offset_frac * (p98 - p2))
     # a floor under the local threshold: brighter than the median scene by the offset (capped below the
     # brightest pixels, for a pad that fills most of the view); it keeps bright ground beside a dark
