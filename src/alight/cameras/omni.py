@@ -539,6 +539,15 @@ def _ray_elevation(P, i):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True)
+def _ray_in_circle(P, i, theta_max):  # type: ignore[no-untyped-def]
+    """:func:`_ray_elevation` of row i, its elevation theta, and whether it projects: a usable ray, not
+    straight back, within the image circle's cone (``theta <= theta_max``, with slack)."""
+    r, zo, ok = _ray_elevation(P, i)
+    theta = math.atan2(zo, r)
+    return r, zo, theta, ok and theta <= theta_max + _THETA_TOL and not (r == 0.0 and zo >= 0.0)
+
+
+@numba.njit(cache=True)
 def _to_pixel(X, Y, r, rho, xc, yc, c, d, e, out, i):  # type: ignore[no-untyped-def]
     if r > 0:
         Xs = rho * X / r
@@ -553,9 +562,8 @@ def _to_pixel(X, Y, r, rho, xc, yc, c, d, e, out, i):  # type: ignore[no-untyped
 @numba.njit(cache=True)
 def _project_kernel(P, ss, invpol, xc, yc, c, d, e, theta_max, rho_max, newton_steps, out):  # type: ignore[no-untyped-def]
     for i in range(P.shape[0]):
-        r, zo, ok = _ray_elevation(P, i)
-        theta = math.atan2(zo, r)
-        if not ok or not theta <= theta_max + _THETA_TOL or (r == 0.0 and zo >= 0.0):
+        r, zo, theta, ok = _ray_in_circle(P, i, theta_max)
+        if not ok:
             out[i, 0] = np.nan
             out[i, 1] = np.nan
             continue
@@ -586,9 +594,8 @@ def _project_exact_kernel(P, ss, xc, yc, c, d, e, theta_max, rho_max, out):  # t
     D = np.empty((n, n))
     crit = np.empty(n)
     for i in range(P.shape[0]):
-        r, zo, ok = _ray_elevation(P, i)
-        theta = math.atan2(zo, r)
-        if not ok or not theta <= theta_max + _THETA_TOL or (r == 0.0 and zo >= 0.0):
+        r, zo, theta, ok = _ray_in_circle(P, i, theta_max)
+        if not ok:
             out[i, 0] = np.nan
             out[i, 1] = np.nan
             continue
