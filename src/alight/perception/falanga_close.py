@@ -81,6 +81,7 @@ from numpy.typing import NDArray
 
 from alight.numerics.histogram import histogram_quantile
 from alight.numerics.homography import homography_lsq, map_point
+from alight.numerics.image import bilinear
 from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
 from alight.types import FloatArray, Observation
@@ -583,13 +584,7 @@ def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c,
         x, y = map_point(H, samp_xy[i, 0], samp_xy[i, 1])
         if not (x >= 0.0 and y >= 0.0 and x <= w_img - 1 and y <= h_img - 1):
             continue
-        j0 = min(int(x), w_img - 2)
-        i0 = min(int(y), h_img - 2)
-        fx = x - j0
-        fy = y - i0
-        a = gray[i0, j0] * (1.0 - fx) + gray[i0, j0 + 1] * fx
-        b = gray[i0 + 1, j0] * (1.0 - fx) + gray[i0 + 1, j0 + 1] * fx
-        val[i] = a * (1.0 - fy) + b * fy
+        val[i] = bilinear(gray, x, y)
         use[i] = True
         if samp_w[i]:
             sw += val[i]

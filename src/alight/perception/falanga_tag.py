@@ -84,6 +84,7 @@ from numpy.typing import NDArray
 
 from alight.numerics.histogram import histogram_quantile
 from alight.numerics.homography import apply_homography, homography_4pt, ransac_homography
+from alight.numerics.image import bilinear
 from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
 from alight.perception.falanga_close import CloseRangeCrossDetector
@@ -463,19 +464,6 @@ def _paint(row, x0, x1, root, r, oy, ox, hh, ww):  # type: ignore[no-untyped-def
 
 
 @numba.njit(cache=True)
-def _bilinear(img, x, y):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Bilinear sample at (x = column, y = row); the caller keeps (x, y) inside [0, w-1] x [0, h-1]."""
-    h, w = img.shape
-    j = min(int(x), w - 2)
-    i = min(int(y), h - 2)
-    fx = x - j
-    fy = y - i
-    a = img[i, j] * (1 - fx) + img[i, j + 1] * fx
-    b = img[i + 1, j] * (1 - fx) + img[i + 1, j + 1] * fx
-    return a * (1 - fy) + b * fy
-
-
-@numba.njit(cache=True)
 def _edge1(img, x, y, dx, dy, L, pol, min_step):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     """Strongest step edge of polarity ``pol`` (+1: brightness increasing along (dx, dy), -1 decreasing)
     on the segment ``(x, y) + s (dx, dy)``, ``|s| <= L`` (px).
@@ -503,7 +491,7 @@ def _edge1(img, x, y, dx, dy, L, pol, min_step):  # type: ignore[no-untyped-def]
         return False, np.nan, np.nan
     prof = np.empty(nt)
     for i in range(nt):
-        prof[i] = _bilinear(img, sx + i * 0.5 * dx, sy + i * 0.5 * dy)
+        prof[i] = bilinear(img, sx + i * 0.5 * dx, sy + i * 0.5 * dy)
     # the derivative weighted by a prior on the offset (1 - (s / 1.5 L)^2, 0.56 at the ends), so that a
     # stronger edge near the end of the range (the ring just inside the pad's border) loses to the one
     # predicted
@@ -664,7 +652,7 @@ def _pattern_corr(img, H, pat_xy, label):  # type: ignore[no-untyped-def]  # pra
         x, y = p[k, 0], p[k, 1]
         if not (x >= 0 and y >= 0 and x <= w - 1 and y <= h - 1):
             continue
-        v = _bilinear(img, x, y)
+        v = bilinear(img, x, y)
         lab = label[k]
         sv += v
         sl += lab
