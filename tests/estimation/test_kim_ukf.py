@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from alight.cameras.omni import OmniCamera, project_exact_point
+from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, PinholeCamera
 from alight.errors import ConfigError, EstimationError
 from alight.estimation import PlatformEstimator
@@ -84,8 +84,7 @@ def test_paper_root_selection_picks_the_root_nearest_the_previous_measurement() 
     a4, K0 = 1e-9, 0.05
     ss = np.real(np.poly([300.0, 900.0, 1400.0, -500.0]))[::-1] * a4
     ss[1] += K0
-    n = ss.size
-    work = (np.empty(n), np.empty(n), np.empty((n, n)), np.empty(n))
+    work = project_exact_work(ss.size)
     # a point in C with -Z / r = K0 and direction (1, 0) in the image plane: X = 1, Z = -K0
     for rho_prev, expected in ((880.0, 900.0), (1300.0, 1400.0), (10.0, 300.0), (math.nan, 300.0)):
         u, v = project_exact_point(

@@ -477,6 +477,12 @@ def solve_rho_jit(ss, K, rho_prev, rho_max):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True)
+def project_exact_work(n):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The work arrays ``(coef, roots, D, crit)`` of :func:`project_exact_point` for ``n = len(ss)``."""
+    return np.empty(n), np.empty(n), np.empty((n, n)), np.empty(n)
+
+
+@numba.njit(cache=True)
 def project_exact_point(  # type: ignore[no-untyped-def]
     Xc, Yc, Zc, ss, xc, yc, c, d, e, rho_ref, rho_max, coef, roots, D, crit
 ):  # pragma: no cover
@@ -588,11 +594,7 @@ def _project_kernel(P, ss, invpol, xc, yc, c, d, e, theta_max, rho_max, newton_s
 
 @numba.njit(cache=True)
 def _project_exact_kernel(P, ss, xc, yc, c, d, e, theta_max, rho_max, out):  # type: ignore[no-untyped-def]
-    n = ss.shape[0]
-    coef = np.empty(n)
-    roots = np.empty(n)
-    D = np.empty((n, n))
-    crit = np.empty(n)
+    coef, roots, D, crit = project_exact_work(ss.shape[0])
     for i in range(P.shape[0]):
         r, zo, theta, ok = _ray_in_circle(P, i, theta_max)
         if not ok:

@@ -78,7 +78,7 @@ import numpy as np
 from numba import njit
 from scipy.special import chdtri
 
-from alight.cameras.omni import OmniCamera, project_exact_point
+from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.errors import ConfigError, EstimationError
 from alight.estimation.sigma_points import (
@@ -127,11 +127,7 @@ def kim_measurement_kernel(
 ) -> None:
     """``h(x, H)`` of eq. 18-27 for every sigma point: ``X`` (m, 7) -> pixels ``out`` (m, 2).
     ``x_C = R_WC(eta)^T [x, y, -H]`` with ``R_WC = Rz(psi) Ry(theta) Rx(phi)``."""
-    n = ss.shape[0]
-    coef = np.empty(n)
-    roots = np.empty(n)
-    D = np.empty((n, n))
-    crit = np.empty(n)
+    coef, roots, D, crit = project_exact_work(ss.shape[0])
     for i in range(X.shape[0]):
         cf = math.cos(X[i, I_PHI])
         sf = math.sin(X[i, I_PHI])
