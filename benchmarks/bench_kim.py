@@ -32,7 +32,8 @@ import cv2
 import numpy as np
 
 from alight.cameras import CameraMount, PinholeCamera, camera_pose_W
-from alight.estimation.kim_ukf import FisheyeLens, KimUkf, KimUkfConfig, rotation_zyx
+from alight.cameras.omni import OmniCamera
+from alight.estimation.kim_ukf import KimUkf, KimUkfConfig, rotation_zyx
 from alight.pads import RedTarget
 from alight.perception.color_filter import (
     RedTargetDetector,
@@ -48,7 +49,7 @@ from alight.types import Observation, PlatformMeasurement
 
 MOUNT = CameraMount.downward()
 # the fisheye of testdata/real/fisheye_ocamcalib/calib_results_0.txt
-LENS = FisheyeLens(
+LENS = OmniCamera(
     width=1600,
     height=1600,
     ss=np.array([-4.714441e02, 0.0, 7.356108e-04, -3.773045e-07, 5.800006e-10]),
@@ -124,7 +125,7 @@ def _ukf_setup(use_compiled: bool = True) -> tuple[KimUkf, Callable[[], bool]]:
         t = state["t"]
         ego.p_WB = np.array([0.5 * t, 0.0, 8.0])
         pT = np.array([1.0 + 1.5 * t, 0.3 * t, 0.0])
-        px = LENS.project((R_WC.T @ (pT - ego.p_WB))[None])[0] + rng.normal(0, 1.0, 2)
+        px = LENS.project_exact((R_WC.T @ (pT - ego.p_WB))[None])[0] + rng.normal(0, 1.0, 2)
         state["t"] = t + 0.05
         return f.update_pixel(t, px, ego)
 

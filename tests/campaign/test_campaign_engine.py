@@ -77,6 +77,20 @@ def test_group_summary_statistics() -> None:
     assert g["time_to_land_s"] == {"p50": 11.5, "mean": 11.5}
     assert g["energy_flight_J"]["mean"] == pytest.approx(140.0)
     assert g["energy_compute_J"]["mean"] is None
+    # the report's group statistics are the same function: the same figures from the parsed missions
+    from alight.campaign.report import Mission, group_stats
+
+    missions = [
+        Mission(
+            mission_id=str(i), condition_id="c0", preset="p", params={}, outcome=r["outcome"],
+            success=r["success"] == "1",
+            values={k: float(v) for k, v in r.items() if k not in ("outcome", "success") and v != ""},
+        )
+        for i, r in enumerate(rows)
+    ]  # fmt: skip
+    page = group_stats(missions)
+    assert {k: page[k] for k in g} == g
+    assert page["outcomes"] == {"landed": 4, "crashed": 1, "error": 1}
 
 
 def _fake_campaign(**over: object) -> dict:

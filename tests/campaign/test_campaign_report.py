@@ -23,9 +23,9 @@ from alight.campaign.report import (
     informative_params,
     param_axis,
     read_results,
-    wilson95,
     write_campaign_report,
 )
+from alight.campaign.summary import wilson95
 from alight.errors import InputError
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -1,4 +1,4 @@
-"""Paper 003's UKF (eq. 10-27): polynomial roots and the paper's root selection, the fisheye measurement
+"""Paper 003's UKF (eq. 10-27): the paper's root selection, the fisheye measurement
 model, the process model, NEES/NIS consistency on simulated flights, re-acquisition after 2 s out of view,
 the world-measurement path against a Kalman filter, and the PlatformEstimator contract."""
 
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, PinholeCamera
 from alight.errors import ConfigError, EstimationError
 from alight.estimation import PlatformEstimator
 from alight.estimation.kim_ukf import (
-    FisheyeLens,
     KimUkf,
     KimUkfConfig,
     euler_zyx,
@@ -24,7 +24,6 @@ from alight.estimation.kim_ukf import (
     kim_fisheye_h,
     kim_process_noise,
     kim_transition,
-    positive_real_roots,
     rotation_zyx,
 )
 from alight.types import PlatformEstimate, PlatformMeasurement, rotmat_to_quat
@@ -40,7 +39,7 @@ CALIB_0 = """
 """
 
 
-def parse_calib(text: str) -> FisheyeLens:
+def parse_calib(text: str) -> OmniCamera:
     """The parts of an OCamCalib calib_results.txt the UKF needs: ss, centre, affine, size."""
     rows = [ln.split() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     ss = np.array([float(v) for v in rows[0][1:]])
@@ -48,7 +47,7 @@ def parse_calib(text: str) -> FisheyeLens:
     xc, yc = (float(v) for v in rows[2])
     c, d, e = (float(v) for v in rows[3])
     h, w = (int(float(v)) for v in rows[4])
-    return FisheyeLens(width=w, height=h, ss=ss, xc=xc, yc=yc, c=c, d=d, e=e, rho_max=800.0)
+    return OmniCamera(width=w, height=h, ss=ss, xc=xc, yc=yc, c=c, d=d, e=e, rho_max=800.0)
 
 
 LENS = parse_calib(CALIB_0)
@@ -79,50 +78,18 @@ def test_embedded_calibration_matches_the_file() -> None:
 # --------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("seed", range(40))
-def test_positive_real_roots_match_numpy(seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    deg = int(rng.integers(1, 7))
-    # roots of every kind: positive, negative, complex pairs, at very different scales
-    roots: list[complex] = []
-    while len(roots) < deg:
-        kind = rng.integers(0, 3)
-        if kind == 2 and len(roots) <= deg - 2:
-            z = complex(rng.normal() * 300, abs(rng.normal()) * 300 + 1)
-            roots += [z, z.conjugate()]
-        else:
-            roots.append(float(rng.choice([-1, 1]) * 10 ** rng.uniform(-1, 3)))
-    c = np.real(np.poly(roots))[::-1] * 10 ** rng.uniform(-9, 2)  # ascending, random scale
-    out = np.empty(deg + 1)
-    n = positive_real_roots(c, math.inf, out)
-    ref = np.roots(c[::-1])
-    ref = np.sort(ref[(np.abs(ref.imag) < 1e-7 * np.abs(ref)) & (ref.real > 0)].real)
-    assert n == ref.size
-    assert np.allclose(out[:n], ref, rtol=1e-9)
-    expected = np.sort([r.real for r in roots if isinstance(r, float) and r > 0])
-    assert np.allclose(out[:n], expected, rtol=1e-8)
-
-
-def test_roots_are_limited_to_the_interval() -> None:
-    c = np.real(np.poly([2.0, 5.0, 9.0]))[::-1]
-    out = np.empty(4)
-    assert positive_real_roots(c, 6.0, out) == 2 and np.allclose(out[:2], [2.0, 5.0])
-    assert positive_real_roots(c, 5.0, out) == 2  # a root on the bound counts
-    assert positive_real_roots(np.array([1.0, 0.0, 1.0]), math.inf, out) == 0  # x^2 + 1
-    assert positive_real_roots(np.array([-3.0, 0.0, 0.0]), math.inf, out) == 0  # a constant
-
-
 def test_paper_root_selection_picks_the_root_nearest_the_previous_measurement() -> None:
     """A lens whose eq. 24 has three positive roots for one direction: a4 (rho - 300)(rho - 900)
     (rho - 1400)(rho + 500) = f(rho) - K0 rho. The paper takes the root nearest rho_prev."""
     a4, K0 = 1e-9, 0.05
     ss = np.real(np.poly([300.0, 900.0, 1400.0, -500.0]))[::-1] * a4
     ss[1] += K0
-    lens = FisheyeLens(width=3000, height=3000, ss=ss, xc=1500.0, yc=1500.0)
+    work = project_exact_work(ss.size)
     # a point in C with -Z / r = K0 and direction (1, 0) in the image plane: X = 1, Z = -K0
-    P = np.array([[1.0, 0.0, -K0]])
     for rho_prev, expected in ((880.0, 900.0), (1300.0, 1400.0), (10.0, 300.0), (math.nan, 300.0)):
-        u, v = lens.project(P, rho_ref=rho_prev)[0]
+        u, v = project_exact_point(
+            1.0, 0.0, -K0, ss, 1500.0, 1500.0, 1.0, 0.0, 0.0, rho_prev, math.inf, *work
+        )
         assert u - 1500.0 == pytest.approx(expected, rel=1e-9) and v == pytest.approx(1500.0)
 
 
@@ -131,23 +98,18 @@ def test_fisheye_projection_round_trip_and_agreement_with_omni_camera() -> None:
     ang = rng.uniform(0, math.radians(92), 500)
     phi = rng.uniform(-math.pi, math.pi, 500)
     rays = np.stack([np.sin(ang) * np.cos(phi), np.sin(ang) * np.sin(phi), np.cos(ang)], axis=1)
-    px = LENS.project(rays * rng.uniform(0.5, 20, (500, 1)))
+    px = LENS.project_exact(rays * rng.uniform(0.5, 20, (500, 1)))
     assert np.isfinite(px).all()
     back = LENS.unproject(px)
     assert np.allclose(back, rays, atol=1e-12)
-    assert np.allclose(LENS.project(back), px, atol=1e-9)
-    omni = pytest.importorskip("alight.cameras.omni")
-    cam = omni.OmniCamera(
-        width=1600, height=1600, ss=LENS.ss, xc=LENS.xc, yc=LENS.yc, c=LENS.c, d=LENS.d, e=LENS.e
-    )
-    assert np.allclose(cam.unproject(px), back, atol=1e-12)
-    assert np.allclose(cam.project(back), px, atol=1e-6)
-    assert FisheyeLens.from_camera(cam).ss.tolist() == LENS.ss.tolist()
+    assert np.allclose(LENS.project_exact(back), px, atol=1e-9)
+    # the invpol projection (Newton-polished) agrees with the exact root
+    assert np.allclose(LENS.project(back), px, atol=1e-6)
 
 
-def test_from_camera_refuses_a_pinhole() -> None:
+def test_quartic_model_refuses_a_pinhole() -> None:
     with pytest.raises(ConfigError):
-        FisheyeLens.from_camera(PinholeCamera.default_downward())
+        KimUkf(KimUkfConfig(measurement_model="quartic"), camera=PinholeCamera.default_downward())
 
 
 # --------------------------------------------------------------------------------------------------
@@ -191,9 +153,9 @@ def test_measurement_model_is_the_lens_projection_of_the_relative_position() -> 
     Z = kim_fisheye_h(X, H, LENS, math.nan)
     for i in range(20):
         x_C = rotation_zyx(X[i, 4:7]).T @ np.array([X[i, 0], X[i, 1], -H])
-        assert np.allclose(Z[i], LENS.project(x_C[None])[0], atol=1e-9)
-    # the same through the camera-model path (project = smallest root, the only one for this lens)
-    assert np.allclose(kim_camera_h(X, H, LENS), Z, atol=1e-9)
+        assert np.allclose(Z[i], LENS.project_exact(x_C[None])[0], atol=1e-9)
+    # the same through the camera-model path (the smallest root, the only one for this lens)
+    assert np.allclose(kim_camera_h(X, H, LENS), Z, atol=1e-6)  # project: invpol + Newton
 
 
 # --------------------------------------------------------------------------------------------------
@@ -245,7 +207,7 @@ def fly(
             vT[:2] += w[1]
         R_WC = R_WB @ MOUNT.R_BC
         rel = pT - p
-        px = LENS.project((R_WC.T @ rel)[None])[0] + rng.normal(0, cfg.pixel_std, 2)
+        px = LENS.project_exact((R_WC.T @ rel)[None])[0] + rng.normal(0, cfg.pixel_std, 2)
         eta = euler_zyx(R_WC) + rng.normal(0, cfg.attitude_std, 3)
         ego = Ego(p + [0.0, 0.0, rng.normal(0, cfg.height_std)], v, rotation_zyx(eta) @ MOUNT.R_BC.T)
         if gap is not None and gap[0] <= t < gap[1]:
@@ -280,7 +242,7 @@ def test_compiled_step_is_the_generic_ukf(scheme: str, update: str) -> None:
         t = 0.05 * k + (1.0 if k >= 20 else 0.0)
         p, v, R_WB = vehicle(t)
         pT = np.array([1.0 + 1.2 * t, -0.5 + 0.3 * t, 0.0])
-        px = LENS.project(((R_WB @ MOUNT.R_BC).T @ (pT - p))[None])[0] + rng.normal(0, 1.0, 2)
+        px = LENS.project_exact(((R_WB @ MOUNT.R_BC).T @ (pT - p))[None])[0] + rng.normal(0, 1.0, 2)
         if k == 30:
             px = px + 80.0  # an outlier for the gate
         a = fast.update_pixel(t, px, Ego(p, v, R_WB))
@@ -378,7 +340,7 @@ def test_predicted_pixel_and_gate_radius_cover_the_next_measurement() -> None:
         assert pred is not None and np.array_equal(f.x, x_before)
         px, radius = pred
         pT_next = r["pT"] + r["vT"] * 0.05
-        true_px = LENS.project(((R_WB @ MOUNT.R_BC).T @ (pT_next - p))[None])[0]
+        true_px = LENS.project_exact(((R_WB @ MOUNT.R_BC).T @ (pT_next - p))[None])[0]
         assert 0 < np.linalg.norm(px - true_px) < radius < 30
 
 
@@ -464,7 +426,7 @@ def test_world_and_pixel_measurements_mix() -> None:
     p, v, R_WB = vehicle(t)
     before = f.state(t).p_WP
     rel = np.array([1.0 + 1.5 * t, 0.5 * t, 0.0]) - p
-    px = LENS.project(((R_WB @ MOUNT.R_BC).T @ rel)[None])[0]
+    px = LENS.project_exact(((R_WB @ MOUNT.R_BC).T @ rel)[None])[0]
     assert f.update_pixel(t, px, Ego(p, v, R_WB))
     after = f.state(t).p_WP
     assert np.allclose(f.anchor[0], p)
@@ -480,7 +442,7 @@ def test_ego_state_message_is_accepted() -> None:
     p, v, R_WB = vehicle(0.0)
     ego = EgoState(t=0.0, p_WB=p, v_WB=v, q_WB=rotmat_to_quat(R_WB), w_WB_B=np.zeros(3))
     f = KimUkf(CONSISTENCY_CFG, camera=LENS)
-    px = LENS.project(((R_WB @ MOUNT.R_BC).T @ (np.array([1.0, 2.0, 0.0]) - p))[None])[0]
+    px = LENS.project_exact(((R_WB @ MOUNT.R_BC).T @ (np.array([1.0, 2.0, 0.0]) - p))[None])[0]
     assert f.update_pixel(0.0, px, ego)
     # the initial position is the unscented mean of flat-earth over the noises, not the noise-free point:
     # within the map's curvature (0.3 mm here) of it

@@ -142,3 +142,14 @@ def test_packed_messages_match_the_checked_ones() -> None:
     for name in ("p", "v", "a", "j"):
         np.testing.assert_array_equal(getattr(checked_ref, name), getattr(ref, name))
         assert not getattr(ref, name).flags.writeable
+
+
+# The shared numerics are a leaf: cameras, perception, estimation, planning and campaign all use them, so
+# they may import only the shared message types and errors (and never a package that uses them).
+ALLOWED_FOR_NUMERICS = ("alight.types", "alight.errors", "alight.numerics")
+
+
+def test_numerics_is_a_leaf() -> None:
+    for path in (SRC / "numerics").rglob("*.py"):
+        bad = {n for n in _imports(path) if n.startswith("alight") and not n.startswith(ALLOWED_FOR_NUMERICS)}
+        assert not bad, f"{path.relative_to(ROOT)} imports {sorted(bad)}"

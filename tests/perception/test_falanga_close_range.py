@@ -303,17 +303,6 @@ def test_cross_corners_on_an_exact_outline() -> None:
     assert int(np.argmax(-(inner - c).sum(axis=1))) == 0
 
 
-def test_homography_fit_is_exact_on_exact_data() -> None:
-    rng = np.random.default_rng(1)
-    H = np.array([[300.0, 12.0, 370.0], [-9.0, 310.0, 240.0], [0.1, -0.05, 1.0]])
-    src = rng.uniform(-0.4, 0.4, (9, 2))
-    q = src @ H[:2, :2].T + H[:2, 2]
-    dst = q / (src @ H[2, :2] + H[2, 2])[:, None]
-    for k in (4, 9):
-        ok, H_est = fc._fit_h(src[:k], dst[:k], np.ones(k, bool))
-        assert ok and np.allclose(H_est, H, rtol=1e-7, atol=1e-7)
-
-
 def test_the_range_finder_gates_the_close_range_stage() -> None:
     """``set_range``: the stage runs below ``close_range_max_range_m`` (5 m) and without a valid reading,
     and is skipped above it; Alg. 1's quad stage is never gated."""

@@ -299,27 +299,3 @@ def test_edge_search_is_subpixel() -> None:
     assert ok and abs(ex - x_edge) < 0.1
     ok, *_ = ft._edge1(img8, start[0], start[1], d[0], d[1], 4.0, 1.0, 10.0)
     assert not ok  # no edge of the other polarity
-
-
-def test_ransac_homography_with_outliers() -> None:
-    rng = np.random.default_rng(7)
-    H = np.array([[80.0, -12.0, 300.0], [9.0, 75.0, 220.0], [0.02, -0.03, 1.0]])
-    src = rng.uniform(-0.7, 0.7, (60, 2))
-    dst = ft._apply_h(H, src) + rng.normal(0.0, 0.2, (60, 2))
-    bad = rng.choice(60, 18, replace=False)
-    dst[bad] += rng.uniform(5.0, 40.0, (18, 2)) * rng.choice([-1, 1], (18, 2))
-    ok, H_est, mask = ft._ransac_h(src, dst, 1.5, 500)
-    assert ok
-    assert not mask[bad].any() and mask.sum() >= 40
-    test = rng.uniform(-0.7, 0.7, (20, 2))
-    assert np.abs(ft._apply_h(H_est, test) - ft._apply_h(H, test)).max() < 0.3
-
-
-def test_least_squares_homography_is_exact_on_exact_data() -> None:
-    rng = np.random.default_rng(8)
-    H = np.array([[50.0, 5.0, 100.0], [-3.0, 60.0, 90.0], [0.01, 0.02, 1.0]])
-    src = rng.uniform(-1, 1, (12, 2))
-    ok, H_est = ft._h_lsq(src, ft._apply_h(H, src), np.ones(12, bool))
-    assert ok and np.allclose(H_est, H, rtol=1e-8, atol=1e-9)
-    ok4, H4 = ft._h4(src, ft._apply_h(H, src), 0, 1, 2, 3)
-    assert ok4 and np.allclose(H4, H, rtol=1e-8, atol=1e-9)

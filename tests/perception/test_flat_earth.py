@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
+from alight.cameras.omni import OmniCamera
 from alight.cameras.pinhole import CameraMount, PinholeCamera, camera_pose_W
-from alight.estimation.kim_ukf import FisheyeLens, rotation_zyx
+from alight.estimation.kim_ukf import rotation_zyx
 from alight.perception import Geolocator
 from alight.perception.flat_earth import FlatEarthGeolocator, flat_earth_jacobians, ground_intersection
 from alight.types import Observation, rot_z
@@ -17,7 +18,7 @@ from alight.types import Observation, rot_z
 MOUNT = CameraMount.downward()
 PINHOLE = PinholeCamera(640, 480, np.array([[400.0, 0, 319.5], [0, 400.0, 239.5], [0, 0, 1]]))
 # the fisheye of testdata/real/fisheye_ocamcalib/calib_results_0.txt (ss, centre, affine)
-FISHEYE = FisheyeLens(
+FISHEYE = OmniCamera(
     width=1600,
     height=1600,
     ss=np.array([-4.714441e02, 0.0, 7.356108e-04, -3.773045e-07, 5.800006e-10]),

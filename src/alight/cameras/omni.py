@@ -54,6 +54,7 @@ import numpy as np
 from numpy.polynomial import Polynomial
 
 from alight.errors import InputError
+from alight.numerics.poly import horner, horner_d, positive_real_roots, positive_real_roots_into
 from alight.types import FloatArray
 
 _INVPOL_TOL_PX = 0.01
@@ -447,90 +448,18 @@ def solve_rho(
 
 
 @numba.njit(cache=True)
-def _horner(coef, x):  # type: ignore[no-untyped-def]
-    y = 0.0
-    for k in range(coef.shape[0] - 1, -1, -1):
-        y = y * x + coef[k]
-    return y
-
-
-@numba.njit(cache=True)
-def _horner_d(coef, x):  # type: ignore[no-untyped-def]
-    """Value and first derivative of the polynomial at x."""
-    y = 0.0
-    dy = 0.0
-    for k in range(coef.shape[0] - 1, -1, -1):
-        dy = dy * x + y
-        y = y * x + coef[k]
-    return y, dy
-
-
-@numba.njit(cache=True)
-def _root_in_bracket(p, a, b, fa):  # type: ignore[no-untyped-def]
-    """The root of polynomial ``p`` in ``[a, b]`` where it changes sign once (``fa = p(a)``): Newton
-    steps kept inside a shrinking bracket, bisection when Newton leaves it."""
-    x = 0.5 * (a + b)
-    for _ in range(200):
-        f, df = _horner_d(p, x)
-        if f == 0.0:
-            return x
-        if (f > 0.0) == (fa > 0.0):
-            a = x
-            fa = f
-        else:
-            b = x
-        xn = x - f / df if df != 0.0 else 0.5 * (a + b)
-        if not (a < xn < b):
-            xn = 0.5 * (a + b)
-        if abs(xn - x) <= 4e-16 * abs(x) or b - a <= 4e-16 * abs(x):
-            return xn
-        x = xn
-    return x
-
-
-@numba.njit(cache=True)
-def _positive_real_roots(p, hi, out):  # type: ignore[no-untyped-def]
-    """All real roots of ``p`` (ascending coefficients, non-zero leading one) in ``(0, hi]``, ascending,
-    into ``out``; returns their count. Each derivative's roots split the interval into pieces where the
-    derivative below it is monotonic, so every root is bracketed by a sign change (from the highest
-    derivative, which is linear, down to ``p``). A root where ``p`` only touches zero (a double root)
-    counts when ``|p|`` is at rounding level there."""
-    n = p.shape[0] - 1
-    D = np.zeros((n, n + 1))  # D[k]: k-th derivative
-    D[0, :] = p
-    for k in range(1, n):
-        for i in range(n + 1 - k):
-            D[k, i] = D[k - 1, i + 1] * (i + 1)
-    crit = np.empty(n + 1)
-    nc = 0
-    for k in range(n - 1, -1, -1):
-        coef = D[k, : n + 1 - k]
-        m = 0
-        a = 0.0
-        fa = coef[0]
-        for j in range(nc + 1):
-            b = crit[j] if j < nc else hi
-            if not b > a:
-                continue
-            fb = _horner(coef, b)
-            x = np.nan
-            if fa != 0.0 and fb != 0.0 and (fa < 0.0) != (fb < 0.0):
-                x = _root_in_bracket(coef, a, b, fa)
-            else:
-                scale = 0.0
-                for i in range(coef.shape[0] - 1, -1, -1):
-                    scale = scale * abs(b) + abs(coef[i])
-                if abs(fb) <= 1e-13 * scale:
-                    x = b
-            if not np.isnan(x) and (m == 0 or abs(x - out[m - 1]) > 1e-12 * max(1.0, abs(x))):
-                out[m] = x
-                m += 1
-            a = b
-            fa = fb
-        for j in range(m):
-            crit[j] = out[j]
-        nc = m
-    return nc
+def select_root(roots: FloatArray, nr: int, rho_ref: float) -> float:  # pragma: no cover
+    """Paper 003 after eq. 24: among the ``nr`` positive real roots ``roots`` (ascending), the one nearest
+    ``rho_ref`` (the smallest when ``rho_ref`` is NaN, and on a tie); NaN when there is none."""
+    if nr == 0:
+        return math.nan
+    best: float = roots[0]
+    if np.isnan(rho_ref):
+        return best
+    for i in range(1, nr):
+        if abs(roots[i] - rho_ref) < abs(best - rho_ref):
+            best = roots[i]
+    return best
 
 
 @numba.njit(cache=True)
@@ -540,29 +469,42 @@ def solve_rho_jit(ss, K, rho_prev, rho_max):  # type: ignore[no-untyped-def]
         return 0.0
     if not (np.isfinite(K) and rho_max > 0):
         return np.nan
-    # eq. 24: a0 + a1 rho + ... = rho K
-    n = ss.shape[0] - 1
-    while n > 1 and ss[n] == 0.0:
-        n -= 1
-    p = ss[: n + 1].copy()
-    p[1] -= K
-    if p[n] == 0.0:
-        return np.nan
-    # every real root lies within Cauchy's bound 1 + max |p_i / p_n|
-    bound = 0.0
-    for i in range(n):
-        bound = max(bound, abs(p[i] / p[n]))
-    hi = min(rho_max * (1.0 + _THETA_TOL), 1.0 + bound)
-    roots = np.empty(n + 1)
-    m = _positive_real_roots(p, hi, roots)
-    best = np.nan
-    for j in range(m):
-        x = roots[j]
-        if np.isnan(best):
-            best = x  # ascending: the smallest
-        elif not np.isnan(rho_prev) and abs(x - rho_prev) < abs(best - rho_prev):
-            best = x
-    return best
+    p = ss.copy()
+    p[1] -= K  # eq. 24: a0 + a1 rho + ... = rho K
+    roots = np.empty(p.shape[0])
+    nr = positive_real_roots(p, rho_max * (1.0 + _THETA_TOL), roots)
+    return select_root(roots, nr, rho_prev)
+
+
+@numba.njit(cache=True)
+def project_exact_work(n):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The work arrays ``(coef, roots, D, crit)`` of :func:`project_exact_point` for ``n = len(ss)``."""
+    return np.empty(n), np.empty(n), np.empty((n, n)), np.empty(n)
+
+
+@numba.njit(cache=True)
+def project_exact_point(  # type: ignore[no-untyped-def]
+    Xc, Yc, Zc, ss, xc, yc, c, d, e, rho_ref, rho_max, coef, roots, D, crit
+):  # pragma: no cover
+    """Pixel ``(u, v)`` of one point ``(Xc, Yc, Zc)`` in C by paper 003 eq. 22-27: rho is the positive
+    real root of eq. 24 within ``rho_max`` nearest ``rho_ref`` (:func:`select_root`); NaN when there is
+    none or the point is straight behind. Work arrays for a caller in a loop (``n = len(ss)``): ``coef``,
+    ``roots`` and ``crit`` of length n, ``D`` of shape (n, n)."""
+    r = math.hypot(Xc, Yc)
+    if not r > 0.0:
+        if Zc > 0.0:
+            return yc, xc  # on the optical axis
+        return np.nan, np.nan
+    for k in range(ss.shape[0]):
+        coef[k] = ss[k]
+    coef[1] += Zc / r  # eq. 24: a0 + (a1 - K) rho + ... = 0 with K = -Z_C / r
+    nr = positive_real_roots_into(coef, rho_max, roots, D, crit)
+    rho = select_root(roots, nr, rho_ref)
+    if np.isnan(rho):
+        return np.nan, np.nan
+    Xs = rho * Xc / r  # eq. 26, 27 in the ideal sensor plane
+    Ys = rho * Yc / r
+    return yc + Xs + e * Ys, xc + d * Xs + c * Ys
 
 
 @numba.njit(cache=True)
@@ -581,7 +523,7 @@ def _unproject_kernel(uv, ss, xc, yc, c, d, e, rho_max, out):  # type: ignore[no
             out[i, 1] = np.nan
             out[i, 2] = np.nan
             continue
-        Z = -_horner(ss, rho)  # z_C = -z_OCam = -f(rho), eq. 2-4
+        Z = -horner(ss, ss.shape[0] - 1, rho)  # z_C = -z_OCam = -f(rho), eq. 2-4
         n = math.sqrt(X * X + Y * Y + Z * Z)
         out[i, 0] = X / n
         out[i, 1] = Y / n
@@ -603,6 +545,15 @@ def _ray_elevation(P, i):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True)
+def _ray_in_circle(P, i, theta_max):  # type: ignore[no-untyped-def]
+    """:func:`_ray_elevation` of row i, its elevation theta, and whether it projects: a usable ray, not
+    straight back, within the image circle's cone (``theta <= theta_max``, with slack)."""
+    r, zo, ok = _ray_elevation(P, i)
+    theta = math.atan2(zo, r)
+    return r, zo, theta, ok and theta <= theta_max + _THETA_TOL and not (r == 0.0 and zo >= 0.0)
+
+
+@numba.njit(cache=True)
 def _to_pixel(X, Y, r, rho, xc, yc, c, d, e, out, i):  # type: ignore[no-untyped-def]
     if r > 0:
         Xs = rho * X / r
@@ -617,20 +568,19 @@ def _to_pixel(X, Y, r, rho, xc, yc, c, d, e, out, i):  # type: ignore[no-untyped
 @numba.njit(cache=True)
 def _project_kernel(P, ss, invpol, xc, yc, c, d, e, theta_max, rho_max, newton_steps, out):  # type: ignore[no-untyped-def]
     for i in range(P.shape[0]):
-        r, zo, ok = _ray_elevation(P, i)
-        theta = math.atan2(zo, r)
-        if not ok or not theta <= theta_max + _THETA_TOL or (r == 0.0 and zo >= 0.0):
+        r, zo, theta, ok = _ray_in_circle(P, i, theta_max)
+        if not ok:
             out[i, 0] = np.nan
             out[i, 1] = np.nan
             continue
         if r == 0.0:
             rho = 0.0  # the axis: invpol(-pi/2) is not exactly 0
         else:
-            rho = _horner(invpol, theta)
+            rho = horner(invpol, invpol.shape[0] - 1, theta)
             # Newton on F(rho) = r f(rho) - z rho (eq. 24 times r); F' = r f' - z > 0 wherever the
             # elevation increases, i.e. inside the circle
             for _ in range(newton_steps):
-                f, df = _horner_d(ss, rho)
+                f, df = horner_d(ss, ss.shape[0] - 1, rho)
                 F = r * f - zo * rho
                 dF = r * df - zo
                 if not dF > 0:
@@ -644,16 +594,16 @@ def _project_kernel(P, ss, invpol, xc, yc, c, d, e, theta_max, rho_max, newton_s
 
 @numba.njit(cache=True)
 def _project_exact_kernel(P, ss, xc, yc, c, d, e, theta_max, rho_max, out):  # type: ignore[no-untyped-def]
+    coef, roots, D, crit = project_exact_work(ss.shape[0])
     for i in range(P.shape[0]):
-        r, zo, ok = _ray_elevation(P, i)
-        theta = math.atan2(zo, r)
-        if not ok or not theta <= theta_max + _THETA_TOL or (r == 0.0 and zo >= 0.0):
+        r, zo, theta, ok = _ray_in_circle(P, i, theta_max)
+        if not ok:
             out[i, 0] = np.nan
             out[i, 1] = np.nan
             continue
-        rho = 0.0 if r == 0.0 else solve_rho_jit(ss, zo / r, np.nan, rho_max)
-        if np.isnan(rho):
-            out[i, 0] = np.nan
-            out[i, 1] = np.nan
-            continue
-        _to_pixel(P[i, 0], P[i, 1], math.sqrt(P[i, 0] ** 2 + P[i, 1] ** 2), rho, xc, yc, c, d, e, out, i)
+        u, v = project_exact_point(
+            P[i, 0], P[i, 1], P[i, 2], ss, xc, yc, c, d, e, np.nan, rho_max * (1.0 + _THETA_TOL),
+            coef, roots, D, crit,
+        )  # fmt: skip
+        out[i, 0] = u
+        out[i, 1] = v

@@ -43,10 +43,9 @@ from matplotlib import colormaps
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
-from scipy.stats import binomtest
 
-from alight.campaign.store import BLOCK_TIME_COLUMN, ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
-from alight.campaign.summary import compute_per_simulated_s
+from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
+from alight.campaign.summary import group_statistics
 from alight.errors import InputError
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
 from alight.evaluation.replay import REPLAY_GIF
@@ -227,65 +226,15 @@ def _read_summary(path: Path, notes: list[str]) -> dict[str, Any] | None:
 
 
 # --------------------------------------------------------------------------------------------------
-# statistics (the same numbers as summary.json, for when it is absent and for aggregates it lacks)
+# statistics (summary.json's function, for when it is absent and for aggregates it lacks)
 # --------------------------------------------------------------------------------------------------
 
 
-def wilson95(successes: int, n: int) -> tuple[float, float] | None:
-    """Wilson score 95 % interval of ``successes`` in ``n`` (SciPy's); None when ``n`` is 0."""
-    if n <= 0:
-        return None
-    ci = binomtest(int(successes), int(n)).proportion_ci(confidence_level=0.95, method="wilson")
-    return float(ci.low), float(ci.high)
-
-
-def _quantiles(values: Iterable[float | None], which: Mapping[str, float]) -> dict[str, float | None]:
-    a = np.array([v for v in values if v is not None], dtype=np.float64)
-    if a.size == 0:
-        return dict.fromkeys(which)
-    return {k: float(np.percentile(a, q)) for k, q in which.items()}
-
-
-def _mean(values: Iterable[float | None]) -> float | None:
-    a = [v for v in values if v is not None]
-    return float(np.mean(a)) if a else None
-
-
 def group_stats(missions: Sequence[Mission]) -> dict[str, Any]:
-    """Counts, success rate with its Wilson interval, and result statistics of a set of missions,
-    with the keys and meaning of a ``summary.json`` group."""
-    n = len(missions)
-    errors = sum(1 for m in missions if not m.flew)
-    flown = n - errors
-    successes = sum(1 for m in missions if m.flew and m.success)
-    ci = wilson95(successes, flown)
-    landed = [m for m in missions if m.outcome == "landed"]
-    flew = [m for m in missions if m.flew]
-    return {
-        "n": n,
-        "n_flown": flown,
-        "successes": successes,
-        "errors": errors,
-        "success_rate": successes / flown if flown else None,
-        "wilson95": list(ci) if ci is not None else None,
-        "touchdown_error_m": _quantiles(
-            (m.values["touchdown_error_m"] for m in landed), {"p50": 50, "p90": 90, "p95": 95, "max": 100}
-        ),
-        "time_to_land_s": {
-            **_quantiles((m.values["time_to_land_s"] for m in landed), {"p50": 50}),
-            "mean": _mean(m.values["time_to_land_s"] for m in landed),
-        },
-        "energy_flight_J": {"mean": _mean(m.values["energy_flight_J"] for m in flew)},
-        "energy_compute_J": {"mean": _mean(m.values["energy_compute_J"] for m in flew)},
-        "compute_ms_per_simulated_s": compute_per_simulated_s(
-            (
-                {b: m.values[column] for b, column in BLOCK_TIME_COLUMN.items()},
-                m.values["simulated_time_s"],
-                m.values["wall_time_s"],
-            )
-            for m in flew
-        ),
-        "outcomes": {o: sum(1 for m in missions if m.outcome == o) for o in _outcomes_of(missions)},
+    """:func:`alight.campaign.summary.group_statistics` (a ``summary.json`` group's figures, computed the
+    same way) and the count of each outcome."""
+    return group_statistics(missions) | {
+        "outcomes": {o: sum(1 for m in missions if m.outcome == o) for o in _outcomes_of(missions)}
     }
 
 

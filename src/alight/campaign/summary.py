@@ -13,8 +13,9 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -48,11 +49,53 @@ def wilson95(successes: int, n: int) -> tuple[float, float] | None:
     return float(ci.low), float(ci.high)
 
 
-def _values(rows: Sequence[Mapping[str, str]], column: str) -> list[float]:
+class MissionFigures(Protocol):
+    """What the group statistics read of one mission: a results.csv row, parsed (the report's
+    :class:`alight.campaign.report.Mission` is one)."""
+
+    @property
+    def outcome(self) -> str:
+        """``landed``, ``crashed``, ..., or ``error`` (no flight)."""
+        ...
+
+    @property
+    def success(self) -> bool:
+        """Whether the mission counts as a success."""
+        ...
+
+    @property
+    def values(self) -> Mapping[str, float | None]:
+        """Numeric result columns (SI units, as in results.csv); None where a cell is empty."""
+        ...
+
+
+@dataclass(frozen=True)
+class _Row:
+    """A results.csv row as :class:`MissionFigures`."""
+
+    outcome: str
+    success: bool
+    values: Mapping[str, float | None]
+
+
+_STAT_COLUMNS = (
+    "touchdown_error_m",
+    "time_to_land_s",
+    "energy_flight_J",
+    "energy_compute_J",
+    "simulated_time_s",
+    "wall_time_s",
+    *BLOCK_TIME_COLUMN.values(),
+)
+"""The numeric columns the group statistics read."""
+
+
+def _values(missions: Iterable[MissionFigures], column: str) -> list[float]:
+    """The finite values of ``column`` (an empty or damaged cell says nothing about the group)."""
     out = []
-    for r in rows:
-        v = parse_float(r.get(column, ""))
-        if v is not None:
+    for m in missions:
+        v = m.values.get(column)
+        if v is not None and math.isfinite(v):
             out.append(v)
     return out
 
@@ -98,33 +141,52 @@ def compute_per_simulated_s(
     return out
 
 
-def _row_compute(r: Mapping[str, str]) -> tuple[dict[str, float | None], float | None, float | None]:
-    times = {b: parse_float(r.get(column, "")) for b, column in BLOCK_TIME_COLUMN.items()}
-    return times, parse_float(r.get("simulated_time_s", "")), parse_float(r.get("wall_time_s", ""))
-
-
-def group_summary(rows: Sequence[Mapping[str, str]]) -> dict[str, Any]:
-    """Counts, success rate, Wilson interval and statistics of one group's rows."""
-    n = len(rows)
-    errors = sum(1 for r in rows if r["outcome"] == "error")
-    successes = sum(1 for r in rows if r["success"] == "1")
-    flown = n - errors
+def group_statistics(missions: Sequence[MissionFigures]) -> dict[str, Any]:
+    """Counts, success rate, Wilson interval and statistics of one group of missions: a ``summary.json``
+    group's figures (the report computes its tables and maps with this too, so the two cannot drift).
+    Successes and the interval are over the missions that flew; touchdown error and time to land over
+    the landed ones; energies and compute over those that flew. Quantiles are numpy's default (linear
+    interpolation between order statistics)."""
+    n = len(missions)
+    flew = [m for m in missions if m.outcome != "error"]
+    landed = [m for m in missions if m.outcome == "landed"]
+    flown = len(flew)
+    successes = sum(1 for m in flew if m.success)
     ci = wilson95(successes, flown)
-    flew = [r for r in rows if r["outcome"] != "error"]
-    landed = [r for r in rows if r["outcome"] == "landed"]
     return {
         "n": n,
         "n_flown": flown,
         "successes": successes,
-        "errors": errors,
+        "errors": n - flown,
         "success_rate": successes / flown if flown else None,
         "wilson95": list(ci) if ci is not None else None,
         "touchdown_error_m": _stats(_values(landed, "touchdown_error_m"), ("p50", "p90", "p95", "max")),
         "time_to_land_s": _stats(_values(landed, "time_to_land_s"), ("p50", "mean")),
         "energy_flight_J": _stats(_values(flew, "energy_flight_J"), ("mean",)),
         "energy_compute_J": _stats(_values(flew, "energy_compute_J"), ("mean",)),
-        "compute_ms_per_simulated_s": compute_per_simulated_s(_row_compute(r) for r in flew),
+        "compute_ms_per_simulated_s": compute_per_simulated_s(
+            (
+                {b: m.values.get(column) for b, column in BLOCK_TIME_COLUMN.items()},
+                m.values.get("simulated_time_s"),
+                m.values.get("wall_time_s"),
+            )
+            for m in flew
+        ),
     }
+
+
+def group_summary(rows: Sequence[Mapping[str, str]]) -> dict[str, Any]:
+    """:func:`group_statistics` of one group's results.csv rows."""
+    return group_statistics(
+        [
+            _Row(
+                r["outcome"],
+                r["success"] == "1",
+                {c: parse_float(r[c]) for c in _STAT_COLUMNS if r.get(c, "") != ""},
+            )
+            for r in rows
+        ]
+    )
 
 
 def summarize(rows: Sequence[Mapping[str, str]], lock: Mapping[str, Any]) -> dict[str, Any]:

@@ -31,9 +31,9 @@ a quartic in ``rho`` (any degree here: all of ``ss``). Root selection as the pap
 positive and real; among several, the one nearest ``rho_prev``, the radius of the previous (most recent)
 measurement (before the first measurement: the current one's). Then (eq. 25-27) the ideal sensor-plane
 point ``rho (X_C, Y_C) / r`` goes through the calibration's affine and centre to the pixel (OpenCV
-``(u, v)``, see :mod:`alight.cameras.omni`). The real roots are found by isolating them between the real
-roots of the polynomial's derivatives (recursively from the linear one) and polishing each by safeguarded
-Newton in its monotone interval: exact, any degree, no eigenvalue problem (~1 us per sigma point). With
+``(u, v)``, see :mod:`alight.cameras.omni`, whose :func:`~alight.cameras.omni.project_exact_point` this
+is). The real roots come from :mod:`alight.numerics.poly` (isolated between the real roots of the
+polynomial's derivatives, polished by safeguarded Newton: exact, any degree, ~1 us per sigma point). With
 ``measurement_model="camera"`` the pixel is any camera model's ``project`` instead (a pinhole preset).
 
 The camera height ``H`` (eq. 18) comes from the ego estimate: ``H = p_WC[2] - deck_height`` (the paper
@@ -78,6 +78,7 @@ import numpy as np
 from numba import njit
 from scipy.special import chdtri
 
+from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.errors import ConfigError, EstimationError
 from alight.estimation.sigma_points import (
@@ -106,200 +107,8 @@ _MIN_ATT_STD = 1e-9
 I_X, I_Y, I_VX, I_VY, I_PHI, I_THETA, I_PSI = range(7)
 
 # --------------------------------------------------------------------------------------------------
-# Polynomial roots and the fisheye projection (numba)
+# The fisheye measurement per sigma point (numba; the lens model is alight.cameras.omni's)
 # --------------------------------------------------------------------------------------------------
-
-
-@njit(cache=True)
-def _peval(c: FloatArray, deg: int, x: float) -> float:
-    y = 0.0
-    for k in range(deg, -1, -1):
-        y = y * x + c[k]
-    return y
-
-
-@njit(cache=True)
-def _peval_d(c: FloatArray, deg: int, x: float) -> tuple[float, float]:
-    y = 0.0
-    dy = 0.0
-    for k in range(deg, -1, -1):
-        dy = dy * x + y
-        y = y * x + c[k]
-    return y, dy
-
-
-@njit(cache=True)
-def _monotone_root(c: FloatArray, deg: int, a: float, b: float, fa: float) -> float:
-    """The root of a polynomial that is monotone on [a, b] and changes sign there (safeguarded Newton:
-    a Newton step when it stays inside the bracket, else bisection)."""
-    lo, hi = (a, b) if fa < 0.0 else (b, a)  # f(lo) < 0 < f(hi)
-    x = 0.5 * (a + b)
-    for _ in range(200):
-        f, df = _peval_d(c, deg, x)
-        if f == 0.0:
-            return x
-        if f < 0.0:
-            lo = x
-        else:
-            hi = x
-        xn = x - f / df if df != 0.0 else 0.5 * (lo + hi)
-        if not ((xn - lo) * (xn - hi) < 0.0):
-            xn = 0.5 * (lo + hi)
-        if abs(xn - x) <= 4e-16 * max(1.0, abs(xn)) or abs(hi - lo) <= 4e-16 * max(1.0, abs(xn)):
-            return xn
-        x = xn
-    return x
-
-
-@njit(cache=True)
-def positive_real_roots(coef: FloatArray, hi: float, out: FloatArray) -> int:
-    """Real roots in ``(0, hi]`` of ``sum coef[k] x^k`` (ascending coefficients), ascending, into ``out``
-    (length >= degree); returns their number. The roots of each derivative split (0, hi] into monotone
-    intervals of the one below; starting from the linear derivative, every level's roots are found in its
-    monotone intervals, up to the polynomial itself. ``hi`` may be inf (then Fujiwara's root bound)."""
-    n = coef.shape[0]
-    return _positive_real_roots(coef, hi, out, np.empty((n, n)), np.empty(n), np.empty(n + 2))
-
-
-@njit(cache=True)
-def _positive_real_roots(
-    coef: FloatArray, hi: float, out: FloatArray, D: FloatArray, crit: FloatArray, pts: FloatArray
-) -> int:
-    """:func:`positive_real_roots` with its work arrays given: ``D`` (>= n+1, >= n+1), ``crit`` (>= n+1),
-    ``pts`` (>= n+3) for degree n (the kernels call it per sigma point without allocating)."""
-    n = coef.shape[0] - 1
-    while n > 0 and coef[n] == 0.0:
-        n -= 1
-    if n == 0 or not hi > 0.0:
-        return 0
-    bound = 0.0
-    for k in range(1, n + 1):  # Fujiwara: |x| <= 2 max |c_(n-k) / c_n|^(1/k) (last term halved)
-        v = abs(coef[n - k] / coef[n])
-        if k == n:
-            v *= 0.5
-        v = v ** (1.0 / k)
-        if v > bound:
-            bound = v
-    top = min(hi, 2.0 * bound)
-    if not top > 0.0:
-        return 0
-    for j in range(n + 1):
-        D[0, j] = coef[j]
-    for k in range(1, n + 1):
-        for j in range(n - k + 1):
-            D[k, j] = D[k - 1, j + 1] * (j + 1)
-    ncrit = 0
-    nr = 0
-    for k in range(n - 1, -1, -1):
-        deg = n - k
-        m = 0
-        pts[m] = 0.0
-        m += 1
-        for i in range(ncrit):
-            if 0.0 < crit[i] < top:
-                pts[m] = crit[i]
-                m += 1
-        pts[m] = top
-        m += 1
-        nr = 0
-        fa = _peval(D[k], deg, pts[0])
-        for i in range(m - 1):
-            a = pts[i]
-            b = pts[i + 1]
-            fb = _peval(D[k], deg, b)
-            if b > a:
-                if fb == 0.0:
-                    out[nr] = b
-                    nr += 1
-                elif fa != 0.0 and (fa < 0.0) != (fb < 0.0):
-                    out[nr] = _monotone_root(D[k], deg, a, b, fa)
-                    nr += 1
-            fa = fb
-        for i in range(nr):
-            crit[i] = out[i]
-        ncrit = nr
-    return nr
-
-
-@njit(cache=True)
-def _select_root(roots: FloatArray, nr: int, rho_ref: float) -> float:
-    """Paper 003 after eq. 24: among the positive real roots, the one nearest ``rho_ref`` (the smallest
-    when ``rho_ref`` is NaN); NaN when there is none."""
-    if nr == 0:
-        return np.nan
-    best = roots[0]
-    if np.isnan(rho_ref):
-        return best
-    for i in range(1, nr):
-        if abs(roots[i] - rho_ref) < abs(best - rho_ref):
-            best = roots[i]
-    return best
-
-
-@njit(cache=True)
-def _fisheye_pixel(
-    Xc: float,
-    Yc: float,
-    Zc: float,
-    ss: FloatArray,
-    xc: float,
-    yc: float,
-    c: float,
-    d: float,
-    e: float,
-    rho_ref: float,
-    rho_max: float,
-    coef: FloatArray,
-    roots: FloatArray,
-    D: FloatArray,
-    crit: FloatArray,
-    pts: FloatArray,
-) -> tuple[float, float]:
-    """Eq. 22-27 for one point in C (OpenCV axes): its pixel ``(u, v)``, NaN when eq. 24 has no positive
-    real root within ``rho_max``."""
-    r = math.hypot(Xc, Yc)
-    if not r > 0.0:
-        if Zc > 0.0:
-            return yc, xc  # on the optical axis
-        return np.nan, np.nan
-    for k in range(ss.shape[0]):
-        coef[k] = ss[k]
-    coef[1] += Zc / r  # eq. 24: a0 + (a1 - K) rho + ... = 0 with K = -Z_C / r
-    nr = _positive_real_roots(coef, rho_max, roots, D, crit, pts)
-    rho = _select_root(roots, nr, rho_ref)
-    if np.isnan(rho):
-        return np.nan, np.nan
-    Xs = rho * Xc / r  # eq. 26, 27 in the ideal sensor plane
-    Ys = rho * Yc / r
-    return yc + Xs + e * Ys, xc + d * Xs + c * Ys
-
-
-@njit(cache=True)
-def fisheye_project_kernel(
-    P: FloatArray,
-    ss: FloatArray,
-    xc: float,
-    yc: float,
-    c: float,
-    d: float,
-    e: float,
-    rho_ref: float,
-    rho_max: float,
-    out: FloatArray,
-) -> None:
-    """Pixels ``out`` (m, 2) of points ``P`` (m, 3) in C by eq. 22-27 with the root nearest ``rho_ref``."""
-    n = ss.shape[0]
-    coef = np.empty(n)
-    roots = np.empty(n)
-    D = np.empty((n, n))
-    crit = np.empty(n)
-    pts = np.empty(n + 2)
-    for i in range(P.shape[0]):
-        u, v = _fisheye_pixel(
-            P[i, 0], P[i, 1], P[i, 2], ss, xc, yc, c, d, e, rho_ref, rho_max, coef, roots, D, crit, pts
-        )
-        out[i, 0] = u
-        out[i, 1] = v
 
 
 @njit(cache=True)
@@ -318,12 +127,7 @@ def kim_measurement_kernel(
 ) -> None:
     """``h(x, H)`` of eq. 18-27 for every sigma point: ``X`` (m, 7) -> pixels ``out`` (m, 2).
     ``x_C = R_WC(eta)^T [x, y, -H]`` with ``R_WC = Rz(psi) Ry(theta) Rx(phi)``."""
-    n = ss.shape[0]
-    coef = np.empty(n)
-    roots = np.empty(n)
-    D = np.empty((n, n))
-    crit = np.empty(n)
-    pts = np.empty(n + 2)
+    coef, roots, D, crit = project_exact_work(ss.shape[0])
     for i in range(X.shape[0]):
         cf = math.cos(X[i, I_PHI])
         sf = math.sin(X[i, I_PHI])
@@ -338,119 +142,14 @@ def kim_measurement_kernel(
         Xc = cp * ct * w0 + sp * ct * w1 - st * w2
         Yc = (cp * st * sf - sp * cf) * w0 + (sp * st * sf + cp * cf) * w1 + ct * sf * w2
         Zc = (cp * st * cf + sp * sf) * w0 + (sp * st * cf - cp * sf) * w1 + ct * cf * w2
-        u, v = _fisheye_pixel(Xc, Yc, Zc, ss, xc, yc, c, d, e, rho_ref, rho_max, coef, roots, D, crit, pts)
+        u, v = project_exact_point(Xc, Yc, Zc, ss, xc, yc, c, d, e, rho_ref, rho_max, coef, roots, D, crit)
         out[i, 0] = u
         out[i, 1] = v
 
 
 # --------------------------------------------------------------------------------------------------
-# The lens description the UKF needs, and attitude helpers
+# Attitude helpers
 # --------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, eq=False, kw_only=True)
-class FisheyeLens:
-    """The omnidirectional model's parameters (OCamCalib; see :mod:`alight.cameras.omni` for the axis
-    convention: ``xc`` is the centre's *row*). Also a minimal camera model: ``project`` solves eq. 24
-    exactly (smallest positive root), ``unproject`` is ``[u, v, f(rho)]`` normalised (eq. 2)."""
-
-    width: int
-    """Image width (px)."""
-    height: int
-    """Image height (px)."""
-    ss: FloatArray
-    """Direct polynomial ``(a0, a1, ...)`` in ascending powers of rho (eq. 4)."""
-    xc: float
-    """Distortion centre row (px)."""
-    yc: float
-    """Distortion centre column (px)."""
-    c: float = 1.0
-    """Affine parameter c."""
-    d: float = 0.0
-    """Affine parameter d."""
-    e: float = 0.0
-    """Affine parameter e."""
-    rho_max: float = math.inf
-    """Largest ideal-plane radius of a valid pixel (px): the image circle."""
-    _det: float = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        ss = np.array(self.ss, dtype=np.float64).ravel()
-        if ss.size < 2 or not np.isfinite(ss).all() or not ss[0] < 0:
-            raise ValueError(f"ss needs >= 2 finite coefficients with a0 < 0, got {ss}")
-        ss.setflags(write=False)
-        object.__setattr__(self, "ss", ss)
-        for name in ("xc", "yc", "c", "d", "e"):
-            v = float(getattr(self, name))
-            if not math.isfinite(v):
-                raise ValueError(f"{name} must be finite, got {v}")
-            object.__setattr__(self, name, v)
-        det = self.c - self.d * self.e
-        if not abs(det) > 1e-12:
-            raise ValueError("the affine [[c, d], [e, 1]] is singular")
-        if not self.rho_max > 0:
-            raise ValueError(f"rho_max must be > 0, got {self.rho_max}")
-        object.__setattr__(self, "rho_max", float(self.rho_max))
-        object.__setattr__(self, "_det", det)
-
-    @classmethod
-    def from_camera(cls, camera: Any) -> FisheyeLens:
-        """The lens of an omnidirectional camera object with attributes ``ss``, ``xc``, ``yc`` (and
-        optionally ``c``, ``d``, ``e``, ``rho_max``, ``width``, ``height``), e.g.
-        :class:`alight.cameras.omni.OmniCamera`. Raises ConfigError for an object without ``ss``."""
-        if isinstance(camera, FisheyeLens):
-            return camera
-        if not all(hasattr(camera, a) for a in ("ss", "xc", "yc")):
-            raise ConfigError(
-                f"{type(camera).__name__} is not an omnidirectional camera (no ss, xc, yc): use "
-                "measurement_model='camera' for other models"
-            )
-        rho_max = getattr(camera, "rho_max", None)
-        return cls(
-            width=int(getattr(camera, "width", 0)),
-            height=int(getattr(camera, "height", 0)),
-            ss=np.asarray(camera.ss, dtype=np.float64),
-            xc=float(camera.xc),
-            yc=float(camera.yc),
-            c=float(getattr(camera, "c", 1.0)),
-            d=float(getattr(camera, "d", 0.0)),
-            e=float(getattr(camera, "e", 0.0)),
-            rho_max=math.inf if rho_max is None else float(rho_max),
-        )
-
-    def ideal_radius(self, pixels: FloatArray) -> FloatArray:
-        """rho (px) of pixels ``(u, v)`` (N, 2) -> (N,): their distance from the centre after the affine."""
-        uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
-        du = uv[:, 0] - self.yc
-        dv = uv[:, 1] - self.xc
-        Xs = (self.c * du - self.e * dv) / self._det
-        Ys = (dv - self.d * du) / self._det
-        return np.hypot(Xs, Ys)
-
-    def unproject(self, pixels: FloatArray) -> FloatArray:
-        """Unit rays in C through pixels (N, 2) -> (N, 3): ``(Xs, Ys, -f(rho))`` normalised (eq. 2 in
-        OpenCV axes); NaN rows beyond ``rho_max``."""
-        uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
-        du = uv[:, 0] - self.yc
-        dv = uv[:, 1] - self.xc
-        Xs = (self.c * du - self.e * dv) / self._det
-        Ys = (dv - self.d * du) / self._det
-        rho = np.hypot(Xs, Ys)
-        f = np.polynomial.polynomial.polyval(rho, self.ss)
-        ray = np.stack([Xs, Ys, -f], axis=1)
-        ray /= np.linalg.norm(ray, axis=1, keepdims=True)
-        ray[~(rho <= self.rho_max)] = np.nan
-        return ray
-
-    def project(self, points_C: FloatArray, rho_ref: float = math.nan) -> FloatArray:
-        """Pixels (N, 2) of points in C (N, 3) by eq. 22-27, the root nearest ``rho_ref`` (the smallest
-        when NaN); NaN rows where eq. 24 has no positive real root within ``rho_max``."""
-        P = np.ascontiguousarray(points_C, dtype=np.float64).reshape(-1, 3)
-        out = np.empty((P.shape[0], 2))
-        fisheye_project_kernel(
-            P, self.ss, self.xc, self.yc, self.c, self.d, self.e, rho_ref, self.rho_max, out
-        )
-        return out
 
 
 def euler_zyx(R: FloatArray) -> FloatArray:
@@ -515,7 +214,7 @@ def kim_process_noise(dt: float, accel_noise: float, attitude_std: float) -> Flo
     return Q
 
 
-def kim_fisheye_h(X: FloatArray, H: float, lens: FisheyeLens, rho_ref: float) -> FloatArray:
+def kim_fisheye_h(X: FloatArray, H: float, lens: OmniCamera, rho_ref: float) -> FloatArray:
     """Eq. 18-27 for sigma points ``X`` (m, 7) -> pixels (m, 2)."""
     out = np.empty((X.shape[0], 2))
     kim_measurement_kernel(
@@ -528,7 +227,7 @@ def kim_fisheye_h(X: FloatArray, H: float, lens: FisheyeLens, rho_ref: float) ->
         lens.d,
         lens.e,
         rho_ref,
-        lens.rho_max,
+        cast(float, lens.rho_max),  # always a float once the camera is built
         out,
     )
     return out
@@ -888,7 +587,7 @@ class KimUkf:
         :class:`KimUkfConfig`.
     camera:
         For pixel measurements: an omnidirectional camera (``ss``, ``xc``, ``yc``...; e.g.
-        :class:`alight.cameras.omni.OmniCamera` or :class:`FisheyeLens`) with ``quartic``, any camera model
+        :class:`alight.cameras.omni.OmniCamera`, whose model eq. 22-27 use) with ``quartic``, any camera model
         with ``camera``. None: world measurements only.
     mount:
         Camera mount (default :meth:`alight.cameras.CameraMount.downward`).
@@ -901,9 +600,15 @@ class KimUkf:
         c = self.config
         self.mount = mount if mount is not None else CameraMount.downward()
         self.camera = camera
-        self.lens: FisheyeLens | None = None
+        self.lens: OmniCamera | None = None
+        """The omnidirectional camera behind eq. 22-27 (``quartic``); None for ``camera`` or no camera."""
         if camera is not None and c.measurement_model == "quartic":
-            self.lens = FisheyeLens.from_camera(camera)
+            if not isinstance(camera, OmniCamera):
+                raise ConfigError(
+                    f"{type(camera).__name__} is not an omnidirectional camera (OmniCamera): use "
+                    "measurement_model='camera' for other models"
+                )
+            self.lens = camera
         self.scheme = c.scheme()
         self._gate = float(chdtri(2, 1.0 - c.gate_probability)) if c.gating else math.inf
         self.use_compiled = self.lens is not None and hasattr(self.scheme, "unit_points")
@@ -1063,7 +768,7 @@ class KimUkf:
         return kim_camera_h, (H, self.camera)
 
     def _rho(self, px: FloatArray) -> float:
-        """:meth:`FisheyeLens.ideal_radius` of one pixel, in scalar arithmetic (called every frame)."""
+        """:meth:`OmniCamera.ideal_radius` of one pixel, in scalar arithmetic (called every frame)."""
         lens = self.lens
         if lens is None:
             return math.nan
@@ -1157,7 +862,7 @@ class KimUkf:
     ) -> tuple[FloatArray, FloatArray, UpdateResult | None]:
         """:func:`kim_pixel_step` with the filter's state; result None: use the Python path."""
         c = self.config
-        lens = cast(FisheyeLens, self.lens)  # use_compiled implies a lens
+        lens = cast(OmniCamera, self.lens)  # use_compiled implies a lens
         dt = t - self._t
         u = np.empty(N_STATE)
         u[0:2] = -(p_WC[:2] - self._p_a[:2] - dt * self._v_a[:2])
@@ -1168,7 +873,7 @@ class KimUkf:
         P = np.empty((N_STATE, N_STATE))
         code = kim_pixel_step(
             self._x, self._P, self._U, self._Wm, self._Wc, dt, u, Q, z, c.pixel_std**2, H, c.height_std**2,
-            lens.ss, lens.xc, lens.yc, lens.c, lens.d, lens.e, rho_ref, lens.rho_max, self._gate,
+            lens.ss, lens.xc, lens.yc, lens.c, lens.d, lens.e, rho_ref, cast(float, lens.rho_max), self._gate,
             c.covariance_update == "joseph", x, P, self._info,
         )  # fmt: skip
         nis = float(self._info[0])
@@ -1366,18 +1071,15 @@ class KimUkf:
 
 
 __all__ = [
-    "FisheyeLens",
     "KimUkf",
     "KimUkfConfig",
     "camera_state_W",
     "euler_zyx",
-    "fisheye_project_kernel",
     "kim_camera_h",
     "kim_fisheye_h",
     "kim_measurement_kernel",
     "kim_pixel_step",
     "kim_process_noise",
     "kim_transition",
-    "positive_real_roots",
     "rotation_zyx",
 ]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,3 +49,46 @@ def box_overlap_weights(n_px: int, edges_px: NDArray[np.float64]) -> NDArray[np.
     a = edges_px[None, :-1]
     b = edges_px[None, 1:]
     return np.clip(np.minimum(lo + 1, b) - np.maximum(lo, a), 0.0, None)
+
+
+def marker_square_corners_P(cx: float, cy: float, a: float) -> FloatArray:
+    """Corners of a marker's black square of side ``a`` (m) centred at ``(cx, cy)`` in P, shape (4, 3),
+    z = 0, in OpenCV's ArUco order: top-left, top-right, bottom-right, bottom-left in the texture (whose
+    top is +x and left +y, see :func:`texture_homography`)."""
+    h = a / 2
+    return np.array(
+        [[cx + h, cy + h, 0.0], [cx + h, cy - h, 0.0], [cx - h, cy - h, 0.0], [cx - h, cy + h, 0.0]]
+    )
+
+
+def square_corners_P(size_m: float) -> FloatArray:
+    """Corners of the square of side ``size_m`` (m) centred at P's origin, shape (4, 3), z = 0:
+    (+x, +y), (-x, +y), (-x, -y), (+x, -y)."""
+    h = size_m / 2
+    return np.array([[h, h, 0.0], [-h, h, 0.0], [-h, -h, 0.0], [h, -h, 0.0]])
+
+
+def paint_marker(
+    img: NDArray[np.float64],
+    size_m: float,
+    dictionary: cv2.aruco.Dictionary,
+    marker_id: int,
+    cells_n: int,
+    cx: float,
+    cy: float,
+    a: float,
+) -> None:
+    """Darken ``img`` (the (n, n) texture of a pad of side ``size_m``, white 255) by the ArUco/AprilTag
+    marker ``marker_id`` of ``dictionary`` (``cells_n`` cells a side plus a one-cell black border) whose
+    black square has side ``a`` (m) and centre ``(cx, cy)`` in P: each cell painted with exact area
+    coverage (:func:`box_overlap_weights`), so the marker's corners stay where P says."""
+    n = img.shape[0]
+    s = n / size_m
+    cells = cv2.aruco.generateImageMarker(dictionary, marker_id, cells_n, borderBits=1)
+    cells = cells.astype(np.float64) - 255.0
+    # texture column of the marker's left (+y) edge and row of its top (+x) edge, in pixel units from
+    # the texture's edge (pixel i spans [i, i+1))
+    u0 = s * (size_m / 2 - (cy + a / 2))
+    v0 = s * (size_m / 2 - (cx + a / 2))
+    steps = np.arange(cells_n + 1) * (s * a / cells_n)
+    img += box_overlap_weights(n, v0 + steps) @ cells @ box_overlap_weights(n, u0 + steps).T

@@ -25,7 +25,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from alight.pads._texture import box_overlap_weights, texture_homography, texture_side_px
+from alight.pads._texture import (
+    marker_square_corners_P,
+    paint_marker,
+    square_corners_P,
+    texture_homography,
+    texture_side_px,
+)
 from alight.types import FloatArray
 
 APRILTAG_DICTIONARY = cv2.aruco.DICT_APRILTAG_36h11
@@ -96,16 +102,11 @@ class AprilTagPad:
     def marker_corners_P(self, marker_id: int) -> FloatArray:
         """Corners of a marker's black square in P, shape (4, 3), z = 0, in OpenCV's ArUco order
         (top-left, top-right, bottom-right, bottom-left in the texture; see the module docstring)."""
-        cx, cy, a = self.marker_center_and_size_P(marker_id)
-        h = a / 2
-        return np.array(
-            [[cx + h, cy + h, 0.0], [cx + h, cy - h, 0.0], [cx - h, cy - h, 0.0], [cx - h, cy + h, 0.0]]
-        )
+        return marker_square_corners_P(*self.marker_center_and_size_P(marker_id))
 
     def quad_corners_P(self) -> FloatArray:
         """Corners of the white square, shape (4, 3): (+x, +y), (-x, +y), (-x, -y), (+x, -y)."""
-        h = self.size_m / 2
-        return np.array([[h, h, 0.0], [-h, h, 0.0], [-h, -h, 0.0], [h, -h, 0.0]])
+        return square_corners_P(self.size_m)
 
     def texture_homography_P_to_px(self, px_per_m: float) -> FloatArray:
         """3x3 homography from pad-plane points ``(x, y, 1)`` (m) to texture pixels ``(u, v, 1)``."""
@@ -116,19 +117,10 @@ class AprilTagPad:
         px_per_m)``. Each marker's cells are painted with exact area coverage (a box filter), so a cell
         edge between pixels gives the proportional grey and the marker corners stay where P says."""
         n = texture_side_px(self.size_m, px_per_m)
-        s = n / self.size_m
         img = np.full((n, n), 255.0)
         dictionary = cv2.aruco.getPredefinedDictionary(APRILTAG_DICTIONARY)
         for mid in self.marker_ids:
-            cx, cy, a = self.marker_center_and_size_P(mid)
-            cells = cv2.aruco.generateImageMarker(dictionary, mid, _MARKER_CELLS, borderBits=1)
-            cells = cells.astype(np.float64) - 255.0
-            # texture column of the marker's left (+y) edge and row of its top (+x) edge, in pixel units
-            # from the texture's edge (pixel i spans [i, i+1))
-            u0 = s * (self.size_m / 2 - (cy + a / 2))
-            v0 = s * (self.size_m / 2 - (cx + a / 2))
-            steps = np.arange(_MARKER_CELLS + 1) * (s * a / _MARKER_CELLS)
-            Wu = box_overlap_weights(n, u0 + steps)
-            Wv = box_overlap_weights(n, v0 + steps)
-            img += Wv @ cells @ Wu.T
+            paint_marker(
+                img, self.size_m, dictionary, mid, _MARKER_CELLS, *self.marker_center_and_size_P(mid)
+            )
         return np.round(np.clip(img, 0, 255)).astype(np.uint8)

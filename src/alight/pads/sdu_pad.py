@@ -36,7 +36,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from alight.pads._texture import box_overlap_weights, texture_homography, texture_side_px
+from alight.pads._texture import (
+    marker_square_corners_P,
+    paint_marker,
+    square_corners_P,
+    texture_homography,
+    texture_side_px,
+)
 from alight.types import FloatArray
 
 
@@ -138,16 +144,11 @@ class SduPad:
     def marker_corners_P(self, marker_id: int) -> FloatArray:
         """Corners of an ArUco marker's black square in P, shape (4, 3), z = 0, OpenCV's ArUco order
         (top-left, top-right, bottom-right, bottom-left in the texture)."""
-        cx, cy, a = self.marker_center_and_size_P(marker_id)
-        h = a / 2
-        return np.array(
-            [[cx + h, cy + h, 0.0], [cx + h, cy - h, 0.0], [cx - h, cy - h, 0.0], [cx - h, cy + h, 0.0]]
-        )
+        return marker_square_corners_P(*self.marker_center_and_size_P(marker_id))
 
     def quad_corners_P(self) -> FloatArray:
         """Corners of the white square, shape (4, 3): (+x, +y), (-x, +y), (-x, -y), (+x, -y)."""
-        h = self.size_m / 2
-        return np.array([[h, h, 0.0], [-h, h, 0.0], [-h, -h, 0.0], [h, -h, 0.0]])
+        return square_corners_P(self.size_m)
 
     def nfold_is_black_P(self, x: FloatArray, y: FloatArray) -> NDArray[np.bool_]:
         """Whether P points ``(x, y)`` (m, any equal shapes) are on a black wedge of the n-fold marker."""
@@ -187,13 +188,7 @@ class SduPad:
         dictionary = cv2.aruco.getPredefinedDictionary(self.aruco_dictionary_id)
         cells_n = self.aruco_cells
         for mid in self.aruco_ids:
-            cx, cy, a = self.marker_center_and_size_P(mid)
-            cells = cv2.aruco.generateImageMarker(dictionary, mid, cells_n, borderBits=1)
-            cells = cells.astype(np.float64) - 255.0
-            u0 = s * (self.size_m / 2 - (cy + a / 2))
-            v0 = s * (self.size_m / 2 - (cx + a / 2))
-            steps = np.arange(cells_n + 1) * (s * a / cells_n)
-            img += box_overlap_weights(n, v0 + steps) @ cells @ box_overlap_weights(n, u0 + steps).T
+            paint_marker(img, self.size_m, dictionary, mid, cells_n, *self.marker_center_and_size_P(mid))
         return np.round(np.clip(img, 0, 255)).astype(np.uint8)
 
     def _nfold_coverage(self, x: FloatArray, y: FloatArray, s: float) -> FloatArray:

@@ -46,15 +46,16 @@ Steps (``C`` = :class:`CloseRangeConfig`):
 6. Corners. ``cv2.cornerSubPix`` at full resolution (half-window 0.3 of the bar width in pixels, so no
    other corner of the cross is inside it); a corner that moves more than ``0.7`` of the half-window is
    dropped (every inner corner must survive).
-7. Verification. A homography from the pad plane to the image is fitted to the corners (least squares,
-   normalised DLT; outer corners off it by more than ``max(1.5 px, 6 % of the bar width)`` are dropped and
-   it is refitted; an inner corner off it, or more than half of 4 or more outer corners, rejects the
-   component). Through it, the image is sampled at points of known colour around the centre, at least
-   3.5 cm from any edge of the tag: the cross's centre and arm centre lines (black) and the white
-   quadrants between the arms (white). At least ``C.min_pattern_fraction`` of the samples in view must
-   fall on the right side of the midpoint between the black and white means, the means must differ by
-   ``C.min_contrast`` and the black mean be at most ``C.max_dark_ratio`` of the white mean (black ink on
-   white paint; dark joints in concrete, grass or asphalt are 0.6-0.9 of their surroundings).
+7. Verification. A homography from the pad plane to the image is fitted to the corners (least squares, the
+   normalised DLT of :mod:`alight.numerics.homography`; outer corners off it by more than ``max(1.5 px,
+   6 % of the bar width)`` are dropped and it is refitted; an inner corner off it, or more than half of 4 or
+   more outer corners, rejects the component). Through it, the image is sampled at points of known colour
+   around the centre, at least 3.5 cm from any edge of the tag: the cross's centre and arm centre lines
+   (black) and the white quadrants between the arms (white). At least ``C.min_pattern_fraction`` of the
+   samples in view must fall on the right side of the midpoint between the black and white means, the
+   means must differ by ``C.min_contrast`` and the black mean be at most ``C.max_dark_ratio`` of the white
+   mean (black ink on white paint; dark joints in concrete, grass or asphalt are 0.6-0.9 of their
+   surroundings).
    Ground-only frames, the AprilTag pad and the real photos in the tests give nothing.
 
 Result: an :class:`alight.types.Observation` with the refined corners and their points in P (z = 0), for
@@ -78,6 +79,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.numerics.histogram import histogram_quantile
+from alight.numerics.homography import homography_lsq, map_point
+from alight.numerics.image import bilinear
+from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
 from alight.types import FloatArray, Observation
 
@@ -167,18 +172,10 @@ def _verification_samples(tag: FalangaTag) -> tuple[FloatArray, NDArray[np.bool_
 
 
 @numba.njit(cache=True)
-def _find(parent, i):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]  # path halving
-        i = parent[i]
-    return i
-
-
-@numba.njit(cache=True)
 def _dark_runs(img, min_contrast, dark_frac):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     """Step 1-2: threshold at the midpoint of the 2nd and 98th percentiles and 8-connected labelling of
-    the dark runs (union-find over runs; a ground texture makes thousands of specks, which OpenCV's
-    labelling with statistics takes ~1 ms for at 376x240).
+    the dark runs (union-find over runs, :mod:`alight.numerics.runs`; a ground texture makes thousands of
+    specks, which OpenCV's labelling with statistics takes ~1 ms for at 376x240).
 
     Returns ``(n_runs, row, x0, x1, root, area, runs_per_row)``: run k spans columns x0[k]..x1[k] of
     row[k], ``root[k]`` is the run that represents k's component; ``area[r]`` (px) and
@@ -191,16 +188,8 @@ def _dark_runs(img, min_contrast, dark_frac):  # type: ignore[no-untyped-def]  #
         for j in range(0, w, 2):
             hist[img[i, j]] += 1
     total = hist.sum()
-    acc = 0
-    p_lo = -1
-    p_hi = 255
-    for v in range(256):
-        acc += hist[v]
-        if p_lo < 0 and acc >= 0.02 * total:
-            p_lo = v
-        if acc >= 0.98 * total:
-            p_hi = v
-            break
+    p_lo = histogram_quantile(hist, total, 0.02)
+    p_hi = histogram_quantile(hist, total, 0.98)
     cap = h * ((w + 1) // 2) + 1
     row = np.empty(cap, np.int32)
     x0 = np.empty(cap, np.int32)
@@ -228,33 +217,19 @@ def _dark_runs(img, min_contrast, dark_frac):  # type: ignore[no-untyped-def]  #
                 x0[n] = s
                 x1[n] = e
                 parent[n] = n
-                # runs of the previous row that touch [s - 1, e + 1] (8-connectivity); both rows are
-                # sorted, so the first candidate only moves right
-                while q < prev_e and x1[q] < s - 1:
-                    q += 1
-                k = q
-                while k < prev_e and x0[k] <= e + 1:
-                    a = _find(parent, n)
-                    b = _find(parent, k)
-                    if a != b:
-                        if a < b:
-                            parent[b] = a
-                        else:
-                            parent[a] = b
-                    k += 1
+                q = link_run(parent, x0, x1, n, q, prev_e)  # with the previous row's runs
                 n += 1
             else:
                 j += 1
         prev_s = cur_s
         prev_e = n
-    root = np.empty(n, np.int32)
+    root = run_roots(parent, n)
     area = np.zeros(n, np.int32)
     n_runs = np.zeros(n, np.int32)
     y_lo = np.full(n, h, np.int32)
     y_hi = np.zeros(n, np.int32)
     for k in range(n):
-        rk = _find(parent, k)
-        root[k] = rk
+        rk = root[k]
         area[rk] += x1[k] - x0[k] + 1
         n_runs[rk] += 1
         y_lo[rk] = min(y_lo[rk], row[k])
@@ -550,77 +525,6 @@ def _prepare(inner_s, outer_s, has_outer, f, w_img, h_img, min_bar_px):  # type:
 
 
 @numba.njit(cache=True)
-def _fit_h(src, dst, mask):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Homography (3, 3) from ``src`` to ``dst`` (N, 2) over the rows where ``mask``: normalised DLT
-    (Hartley), least squares by SVD. Returns ``(ok, H)``."""
-    n = 0
-    ms = np.zeros(2)
-    md = np.zeros(2)
-    for k in range(src.shape[0]):
-        if mask[k]:
-            n += 1
-            ms += src[k]
-            md += dst[k]
-    H = np.eye(3)
-    if n < 4:
-        return False, H
-    ms /= n
-    md /= n
-    ds = 0.0
-    dd = 0.0
-    for k in range(src.shape[0]):
-        if mask[k]:
-            ds += math.hypot(src[k, 0] - ms[0], src[k, 1] - ms[1])
-            dd += math.hypot(dst[k, 0] - md[0], dst[k, 1] - md[1])
-    if ds <= 0.0 or dd <= 0.0:
-        return False, H
-    ss = math.sqrt(2.0) * n / ds
-    sd = math.sqrt(2.0) * n / dd
-    A = np.zeros((2 * n, 9))
-    r = 0
-    for k in range(src.shape[0]):
-        if not mask[k]:
-            continue
-        x = (src[k, 0] - ms[0]) * ss
-        y = (src[k, 1] - ms[1]) * ss
-        u = (dst[k, 0] - md[0]) * sd
-        v = (dst[k, 1] - md[1]) * sd
-        A[r, 0] = x
-        A[r, 1] = y
-        A[r, 2] = 1.0
-        A[r, 6] = -u * x
-        A[r, 7] = -u * y
-        A[r, 8] = -u
-        A[r + 1, 3] = x
-        A[r + 1, 4] = y
-        A[r + 1, 5] = 1.0
-        A[r + 1, 6] = -v * x
-        A[r + 1, 7] = -v * y
-        A[r + 1, 8] = -v
-        r += 2
-    if n == 4:  # 8 x 9: pad to a square matrix for the SVD's null vector
-        A2 = np.zeros((9, 9))
-        A2[:8] = A
-        A = A2
-    _, _, vt = np.linalg.svd(A)
-    Hn = np.ascontiguousarray(vt[8]).reshape(3, 3)
-    Ts = np.array([[ss, 0.0, -ss * ms[0]], [0.0, ss, -ss * ms[1]], [0.0, 0.0, 1.0]])
-    Tdi = np.array([[1.0 / sd, 0.0, md[0]], [0.0, 1.0 / sd, md[1]], [0.0, 0.0, 1.0]])
-    H = Tdi @ Hn @ Ts
-    if not np.isfinite(H).all() or abs(H[2, 2]) < 1e-300:
-        return False, np.eye(3)
-    return True, H / H[2, 2]
-
-
-@numba.njit(cache=True)
-def _map(H, x, y):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    wz = H[2, 0] * x + H[2, 1] * y + H[2, 2]
-    if abs(wz) < 1e-12:
-        return np.nan, np.nan
-    return (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / wz, (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / wz
-
-
-@numba.njit(cache=True)
 def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c, max_ratio, min_frac):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     """Steps 6 (acceptance of the refined corners) and 7 (homography and pattern).
 
@@ -642,7 +546,7 @@ def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c,
         if idx[i] < 4 and not ok_i:
             return False, keep, 0.0
         keep[i] = ok_i
-    ok, H = _fit_h(src, dst, keep)
+    ok, H = homography_lsq(src, dst, keep)
     if not ok:
         return False, keep, 0.0
     tol = max(1.5, 0.06 * bar_px)
@@ -653,7 +557,7 @@ def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c,
             continue
         if idx[i] >= 4:
             n_outer += 1
-        u, v = _map(H, src[i, 0], src[i, 1])
+        u, v = map_point(H, src[i, 0], src[i, 1])
         res = math.hypot(u - dst[i, 0], v - dst[i, 1])
         if not res <= tol:
             if idx[i] < 4:
@@ -664,7 +568,7 @@ def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c,
     if n_outer >= 4 and 2 * n_dropped > n_outer:
         return False, keep, 0.0
     if n_dropped > 0:
-        ok, H = _fit_h(src, dst, keep)
+        ok, H = homography_lsq(src, dst, keep)
         if not ok:
             return False, keep, 0.0
     # pattern: bilinear samples at the points of known colour that are in view
@@ -677,16 +581,10 @@ def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c,
     nw = 0
     nb = 0
     for i in range(n_s):
-        x, y = _map(H, samp_xy[i, 0], samp_xy[i, 1])
+        x, y = map_point(H, samp_xy[i, 0], samp_xy[i, 1])
         if not (x >= 0.0 and y >= 0.0 and x <= w_img - 1 and y <= h_img - 1):
             continue
-        j0 = min(int(x), w_img - 2)
-        i0 = min(int(y), h_img - 2)
-        fx = x - j0
-        fy = y - i0
-        a = gray[i0, j0] * (1.0 - fx) + gray[i0, j0 + 1] * fx
-        b = gray[i0 + 1, j0] * (1.0 - fx) + gray[i0 + 1, j0 + 1] * fx
-        val[i] = a * (1.0 - fy) + b * fy
+        val[i] = bilinear(gray, x, y)
         use[i] = True
         if samp_w[i]:
             sw += val[i]

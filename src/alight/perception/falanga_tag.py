@@ -58,9 +58,9 @@ Alg. 1 of the paper, step by step, and how each step is done here (numbers measu
    leaves the downward camera's view below ~1.5 m above the pad and Alg. 1 would go blind for the last
    part of the landing. Off with ``close_range=False``.
 
-RANSAC (step 4, 5) is a numba implementation: 4-point minimal samples from a fixed-seed xorshift
-generator (a detection stays a pure function of the image), adaptive iteration count for 99.5 %
-confidence, then a least-squares refit (normalised DLT) on the inliers.
+RANSAC (step 4, 5) is :func:`alight.numerics.homography.ransac_homography` (numba): 4-point minimal
+samples from a fixed-seed xorshift generator (a detection stays a pure function of the image), adaptive
+iteration count for 99.5 % confidence, then a least-squares refit (normalised DLT) on the inliers.
 
 The result is one :class:`alight.types.Observation` (kind ``circle``, ``cross`` or ``quad``) with the image
 points, their points in P (z = 0) for PnP, and a quality in [0, 1]: the pattern correlation times the
@@ -82,6 +82,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.numerics.histogram import histogram_quantile
+from alight.numerics.homography import apply_homography, homography_4pt, ransac_homography
+from alight.numerics.image import bilinear
+from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
 from alight.perception.falanga_close import CloseRangeCrossDetector
 from alight.types import FloatArray, Observation
@@ -215,19 +219,9 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # t
             P[ti + 1, tj + 1] = rowsum[tj] + P[ti, tj + 1] + P[ti + 1, tj] - P[ti, tj]
             Cn[ti + 1, tj + 1] = c + Cn[ti, tj + 1] + Cn[ti + 1, tj] - Cn[ti, tj]
     total = hist.sum()
-    acc = 0
-    p2 = -1
-    p50 = -1
-    p98 = 255
-    for v in range(256):
-        acc += hist[v]
-        if p2 < 0 and acc >= 0.02 * total:
-            p2 = v
-        if p50 < 0 and acc >= 0.5 * total:
-            p50 = v
-        if acc >= 0.98 * total:
-            p98 = v
-            break
+    p2 = histogram_quantile(hist, total, 0.02)
+    p50 = histogram_quantile(hist, total, 0.5)
+    p98 = histogram_quantile(hist, total, 0.98)
     offset = max(offset_min, offset_frac * (p98 - p2))
     # a floor under the local threshold: brighter than the median scene by the offset (capped below the
     # brightest pixels, for a pad that fills most of the view); it keeps bright ground beside a dark
@@ -283,38 +277,19 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # t
             x1[n] = trans[t + 1] - 1
             parent[n] = n
             n += 1
-        # union with the runs of the previous row that touch this one (8-connectivity); roots are
-        # always the smallest index of their set, so every parent pointer points backwards
+        # union with the runs of the previous row that touch this one (8-connectivity)
         p = prev_start
         for k in range(cur_start, n):
-            while p < prev_end and x1[p] < x0[k] - 1:
-                p += 1
-            q = p
-            while q < prev_end and x0[q] <= x1[k] + 1:
-                a = k
-                while parent[a] != a:
-                    parent[a] = parent[parent[a]]
-                    a = parent[a]
-                b = q
-                while parent[b] != b:
-                    parent[b] = parent[parent[b]]
-                    b = parent[b]
-                if a < b:
-                    parent[b] = a
-                elif b < a:
-                    parent[a] = b
-                q += 1
+            p = link_run(parent, x0, x1, k, p, prev_end)
         prev_start = cur_start
         prev_end = n
-    root = np.empty(n, np.int32)
+    root = run_roots(parent, n)
     bx0 = np.empty(n, np.int32)
     bx1 = np.empty(n, np.int32)
     by0 = np.empty(n, np.int32)
     by1 = np.empty(n, np.int32)
     for k in range(n):
-        # parent[k] <= k, so the root of parent[k] is already known
-        r0 = k if parent[k] == k else root[parent[k]]
-        root[k] = r0
+        r0 = root[k]
         if r0 == k:
             bx0[k] = x0[k]
             bx1[k] = x1[k]
@@ -489,36 +464,6 @@ def _paint(row, x0, x1, root, r, oy, ox, hh, ww):  # type: ignore[no-untyped-def
 
 
 @numba.njit(cache=True)
-def _bilinear(img, x, y):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Bilinear sample at (x = column, y = row); the caller keeps (x, y) inside [0, w-1] x [0, h-1]."""
-    h, w = img.shape
-    j = min(int(x), w - 2)
-    i = min(int(y), h - 2)
-    fx = x - j
-    fy = y - i
-    a = img[i, j] * (1 - fx) + img[i, j + 1] * fx
-    b = img[i + 1, j] * (1 - fx) + img[i + 1, j + 1] * fx
-    return a * (1 - fy) + b * fy
-
-
-@numba.njit(cache=True)
-def _apply_h(H, xy):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Homography applied to points (N, 2) -> (N, 2) (NaN where the point maps to infinity)."""
-    out = np.empty((xy.shape[0], 2))
-    for k in range(xy.shape[0]):
-        x = xy[k, 0]
-        y = xy[k, 1]
-        wz = H[2, 0] * x + H[2, 1] * y + H[2, 2]
-        if abs(wz) < 1e-12:
-            out[k, 0] = np.nan
-            out[k, 1] = np.nan
-        else:
-            out[k, 0] = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / wz
-            out[k, 1] = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / wz
-    return out
-
-
-@numba.njit(cache=True)
 def _edge1(img, x, y, dx, dy, L, pol, min_step):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     """Strongest step edge of polarity ``pol`` (+1: brightness increasing along (dx, dy), -1 decreasing)
     on the segment ``(x, y) + s (dx, dy)``, ``|s| <= L`` (px).
@@ -546,7 +491,7 @@ def _edge1(img, x, y, dx, dy, L, pol, min_step):  # type: ignore[no-untyped-def]
         return False, np.nan, np.nan
     prof = np.empty(nt)
     for i in range(nt):
-        prof[i] = _bilinear(img, sx + i * 0.5 * dx, sy + i * 0.5 * dy)
+        prof[i] = bilinear(img, sx + i * 0.5 * dx, sy + i * 0.5 * dy)
     # the derivative weighted by a prior on the offset (1 - (s / 1.5 L)^2, 0.56 at the ends), so that a
     # stronger edge near the end of the range (the ring just inside the pad's border) loses to the one
     # predicted
@@ -692,232 +637,13 @@ def _refine_quad(img, q, half, min_step):  # type: ignore[no-untyped-def]  # pra
 
 
 @numba.njit(cache=True)
-def _solve(A, b):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Gaussian elimination with partial pivoting for a small dense system (no LAPACK call, whose
-    per-call cost dominates at this size); (ok, x). A and b are overwritten."""
-    n = b.shape[0]
-    for c in range(n):
-        p = c
-        for r in range(c + 1, n):
-            if abs(A[r, c]) > abs(A[p, c]):
-                p = r
-        if not abs(A[p, c]) > 1e-12:
-            return False, b
-        if p != c:
-            for k in range(n):
-                A[c, k], A[p, k] = A[p, k], A[c, k]
-            b[c], b[p] = b[p], b[c]
-        inv = 1.0 / A[c, c]
-        for r in range(c + 1, n):
-            f = A[r, c] * inv
-            if f != 0.0:
-                for k in range(c, n):
-                    A[r, k] -= f * A[c, k]
-                b[r] -= f * b[c]
-    x = np.empty(n)
-    for r in range(n - 1, -1, -1):
-        acc = b[r]
-        for k in range(r + 1, n):
-            acc -= A[r, k] * x[k]
-        x[r] = acc / A[r, r]
-    for r in range(n):
-        if not np.isfinite(x[r]):
-            return False, x
-    return True, x
-
-
-@numba.njit(cache=True)
-def _h4(src, dst, i0, i1, i2, i3):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Exact homography from 4 point pairs (h33 = 1); (ok, H)."""
-    A = np.zeros((8, 8))
-    b = np.zeros(8)
-    idx = (i0, i1, i2, i3)
-    for r in range(4):
-        k = idx[r]
-        x, y = src[k, 0], src[k, 1]
-        u, v = dst[k, 0], dst[k, 1]
-        A[2 * r, 0] = x
-        A[2 * r, 1] = y
-        A[2 * r, 2] = 1.0
-        A[2 * r, 6] = -u * x
-        A[2 * r, 7] = -u * y
-        A[2 * r + 1, 3] = x
-        A[2 * r + 1, 4] = y
-        A[2 * r + 1, 5] = 1.0
-        A[2 * r + 1, 6] = -v * x
-        A[2 * r + 1, 7] = -v * y
-        b[2 * r] = u
-        b[2 * r + 1] = v
-    H = np.eye(3)
-    ok, h = _solve(A, b)
-    if not ok:
-        return False, H
-    for k in range(8):
-        H[k // 3, k % 3] = h[k]
-    return True, H
-
-
-@numba.njit(cache=True)
-def _normalizer(p, mask):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Hartley normalisation of the masked points (centroid to 0, mean distance sqrt 2): (s, cx, cy)."""
-    cx = cy = 0.0
-    m = 0
-    for k in range(p.shape[0]):
-        if mask[k]:
-            cx += p[k, 0]
-            cy += p[k, 1]
-            m += 1
-    cx /= m
-    cy /= m
-    d = 0.0
-    for k in range(p.shape[0]):
-        if mask[k]:
-            d += np.hypot(p[k, 0] - cx, p[k, 1] - cy)
-    d /= m
-    return np.sqrt(2.0) / max(d, 1e-12), cx, cy
-
-
-@numba.njit(cache=True)
-def _h_lsq(src, dst, mask):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """Least-squares homography of the masked point pairs: the DLT on Hartley-normalised points with
-    h33 = 1 (its normal equations, 8x8), denormalised; (ok, H)."""
-    ss, sx, sy = _normalizer(src, mask)
-    sd, dx, dy = _normalizer(dst, mask)
-    M = np.zeros((8, 8))
-    rhs = np.zeros(8)
-    a = np.zeros(8)
-    for k in range(src.shape[0]):
-        if not mask[k]:
-            continue
-        x = ss * (src[k, 0] - sx)
-        y = ss * (src[k, 1] - sy)
-        u = sd * (dst[k, 0] - dx)
-        v = sd * (dst[k, 1] - dy)
-        for r in range(2):
-            a[:] = 0.0
-            if r == 0:
-                a[0] = x
-                a[1] = y
-                a[2] = 1.0
-                a[6] = -u * x
-                a[7] = -u * y
-                t = u
-            else:
-                a[3] = x
-                a[4] = y
-                a[5] = 1.0
-                a[6] = -v * x
-                a[7] = -v * y
-                t = v
-            for i in range(8):
-                rhs[i] += a[i] * t
-                for j in range(8):
-                    M[i, j] += a[i] * a[j]
-    ok, h = _solve(M, rhs)
-    if not ok:
-        return False, np.eye(3)
-    Hn = np.array([[h[0], h[1], h[2]], [h[3], h[4], h[5]], [h[6], h[7], 1.0]])
-    Ts = np.array([[ss, 0.0, -ss * sx], [0.0, ss, -ss * sy], [0.0, 0.0, 1.0]])
-    Td_inv = np.array([[1.0 / sd, 0.0, dx], [0.0, 1.0 / sd, dy], [0.0, 0.0, 1.0]])
-    H = Td_inv @ Hn @ Ts
-    if abs(H[2, 2]) < 1e-15 or not np.isfinite(H).all():
-        return False, np.eye(3)
-    return True, H / H[2, 2]
-
-
-@numba.njit(cache=True)
-def _inliers(H, src, dst, thr2):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    n = src.shape[0]
-    mask = np.zeros(n, np.bool_)
-    cnt = 0
-    for k in range(n):
-        x, y = src[k, 0], src[k, 1]
-        wz = H[2, 0] * x + H[2, 1] * y + H[2, 2]
-        if abs(wz) < 1e-12:
-            continue
-        u = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / wz - dst[k, 0]
-        v = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / wz - dst[k, 1]
-        if u * u + v * v <= thr2:
-            mask[k] = True
-            cnt += 1
-    return mask, cnt
-
-
-@numba.njit(cache=True)
-def _ransac_h(src, dst, thr, max_iters):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
-    """RANSAC homography (Fischler and Bolles 1981) from point pairs (N, 2) -> (N, 2): minimal 4-point
-    samples drawn by a fixed-seed xorshift generator (so a detection is a pure function of the image), the
-    adaptive number of iterations for 99.5 % confidence, then a least-squares fit on the inliers,
-    repeated once on the inliers of that fit if they changed. Returns (ok, H, inlier mask)."""
-    n = src.shape[0]
-    best_mask = np.zeros(n, np.bool_)
-    if n < 4:
-        return False, np.eye(3), best_mask
-    thr2 = thr * thr
-    best_cnt = 0
-    state = np.uint64(0x9E3779B97F4A7C15)
-    need = max_iters
-    it = 0
-    while it < need:
-        it += 1
-        idx = np.empty(4, np.int64)
-        for r in range(4):
-            while True:
-                state ^= state << np.uint64(13)
-                state ^= state >> np.uint64(7)
-                state ^= state << np.uint64(17)
-                c = np.int64(state % np.uint64(n))
-                dup = False
-                for r2 in range(r):
-                    if idx[r2] == c:
-                        dup = True
-                if not dup:
-                    break
-            idx[r] = c
-        ok, H = _h4(src, dst, idx[0], idx[1], idx[2], idx[3])
-        if not ok:
-            continue
-        mask, cnt = _inliers(H, src, dst, thr2)
-        if cnt > best_cnt:
-            best_cnt = cnt
-            best_mask = mask
-            w = cnt / n
-            if w >= 1.0:
-                need = min(need, it)
-            else:
-                p_good = w**4
-                if p_good > 1e-9:
-                    need = min(max_iters, int(np.ceil(np.log(0.005) / np.log(1.0 - p_good))))
-    if best_cnt < 4:
-        return False, np.eye(3), best_mask
-    mask = best_mask
-    H = np.eye(3)
-    for _ in range(2):
-        ok, H = _h_lsq(src, dst, mask)
-        if not ok:
-            return False, np.eye(3), best_mask
-        new_mask, cnt = _inliers(H, src, dst, thr2)
-        if cnt < 4:
-            return False, H, new_mask
-        same = True
-        for k in range(n):
-            if new_mask[k] != mask[k]:
-                same = False
-                break
-        mask = new_mask
-        if same:
-            break
-    return True, H, mask
-
-
-@numba.njit(cache=True)
 def _pattern_corr(img, H, pat_xy, label):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     """Pearson correlation between the image sampled at the pattern points mapped by H and their labels
     (1 white, 0 black), the white-minus-black mean difference, and the fraction of points inside the
     image. (corr, contrast, frac_in)."""
     h, w = img.shape
     n = pat_xy.shape[0]
-    p = _apply_h(H, pat_xy)
+    p = apply_homography(H, pat_xy)
     sv = sl = svv = sll = svl = 0.0
     sw = sb = 0.0
     nw = nb = 0
@@ -926,7 +652,7 @@ def _pattern_corr(img, H, pat_xy, label):  # type: ignore[no-untyped-def]  # pra
         x, y = p[k, 0], p[k, 1]
         if not (x >= 0 and y >= 0 and x <= w - 1 and y <= h - 1):
             continue
-        v = _bilinear(img, x, y)
+        v = bilinear(img, x, y)
         lab = label[k]
         sv += v
         sl += lab
@@ -956,9 +682,9 @@ def _ring_edges(img, H, ring_xy, ring_out, ring_in, pol, half, min_step):  # typ
     the pad's radial line through it (the line through the images of the points just inside and just
     outside the edge). Returns (points (N, 2), ok (N,))."""
     n = ring_xy.shape[0]
-    c = _apply_h(H, ring_xy)
-    a = _apply_h(H, ring_out)
-    b = _apply_h(H, ring_in)
+    c = apply_homography(H, ring_xy)
+    a = apply_homography(H, ring_out)
+    b = apply_homography(H, ring_in)
     pts = np.full((n, 2), np.nan)
     ok = np.zeros(n, np.bool_)
     for k in range(n):
@@ -991,7 +717,7 @@ def _ransac_subset(src, dst, ok, thr, max_iters, n_need):  # type: ignore[no-unt
         s2[k, 1] = src[sel[k], 1]
         d2[k, 0] = dst[sel[k], 0]
         d2[k, 1] = dst[sel[k], 1]
-    good, H, m = _ransac_h(s2, d2, thr, max_iters)
+    good, H, m = ransac_homography(s2, d2, thr, max_iters)
     cnt = 0
     for k in range(sel.shape[0]):
         if m[k]:
@@ -1026,7 +752,7 @@ def _quad_stage(img, q_small, f, quad_xy, half, min_step):  # type: ignore[no-un
         qo[k, 0] = q[order[(k0 + k) % 4], 0]
         qo[k, 1] = q[order[(k0 + k) % 4], 1]
     q_ref, n_sides = _refine_quad(img, qo, half, min_step)
-    ok, H0 = _h4(quad_xy, q_ref, 0, 1, 2, 3)
+    ok, H0 = homography_4pt(quad_xy, q_ref, 0, 1, 2, 3)
     side = 0.0
     for k in range(4):
         side += np.hypot(q_ref[(k + 1) % 4, 0] - q_ref[k, 0], q_ref[(k + 1) % 4, 1] - q_ref[k, 1])
@@ -1350,7 +1076,7 @@ class FalangaTagDetector:
         self, gray: U8Array, H0: FloatArray, bar_px: float, thr: float, times: dict[str, float] | None
     ) -> tuple[FloatArray, FloatArray, float] | None:
         """Cross corners: ``cv2.cornerSubPix`` from the quad's prediction, then RANSAC over the 12."""
-        pred = _apply_h(H0, self._cross_xy)
+        pred = apply_homography(H0, self._cross_xy)
         h, w = gray.shape
         win = int(np.clip(0.4 * bar_px, 2, 12))
         inside = (pred[:, 0] >= win) & (pred[:, 1] >= win) & (pred[:, 0] < w - win) & (pred[:, 1] < h - win)

@@ -57,6 +57,19 @@ def footprint_width_m(altitude_m: float, fov_rad: float, overlap: float = 0.0) -
     return 2.0 * altitude_m * math.tan(0.5 * fov_rad) * (1.0 - overlap)
 
 
+def _check_area(
+    x_min: float, x_max: float, y_min: float, y_max: float, altitude_m: float, spacing_m: float
+) -> None:
+    """The search area's arguments, as both patterns take them; ValueError when they are unusable."""
+    vals = (x_min, x_max, y_min, y_max, altitude_m, spacing_m)
+    if not all(math.isfinite(v) for v in vals):
+        raise ValueError("area bounds, altitude and spacing must be finite")
+    if not (x_max > x_min and y_max > y_min):
+        raise ValueError(f"empty search area: x [{x_min}, {x_max}], y [{y_min}, {y_max}]")
+    if not spacing_m > 0.0:
+        raise ValueError(f"spacing_m must be > 0, got {spacing_m}")
+
+
 def lawnmower_waypoints(
     x_min: float,
     x_max: float,
@@ -76,13 +89,7 @@ def lawnmower_waypoints(
     is ``"x"`` or ``"y"``. The pattern starts at the corner nearest to ``start_xy`` ((2,), m; default
     (x_min, y_min)); ties go to the lower x, then the lower y.
     """
-    vals = (x_min, x_max, y_min, y_max, altitude_m, spacing_m)
-    if not all(math.isfinite(v) for v in vals):
-        raise ValueError("area bounds, altitude and spacing must be finite")
-    if not (x_max > x_min and y_max > y_min):
-        raise ValueError(f"empty search area: x [{x_min}, {x_max}], y [{y_min}, {y_max}]")
-    if not spacing_m > 0.0:
-        raise ValueError(f"spacing_m must be > 0, got {spacing_m}")
+    _check_area(x_min, x_max, y_min, y_max, altitude_m, spacing_m)
     if rows_along not in ("auto", "x", "y"):
         raise ValueError(f"rows_along must be 'auto', 'x' or 'y', got {rows_along!r}")
     along_x = (x_max - x_min >= y_max - y_min) if rows_along == "auto" else rows_along == "x"
@@ -136,13 +143,7 @@ def spiral_waypoints(
     between two legs has room. Corner cuts and the clipped outer ring leave points up to about 2/3 s from
     the nearest leg (a lawnmower guarantees s / 2), so use a little more overlap than for a lawnmower.
     """
-    vals = (x_min, x_max, y_min, y_max, altitude_m, spacing_m)
-    if not all(math.isfinite(v) for v in vals):
-        raise ValueError("area bounds, altitude and spacing must be finite")
-    if not (x_max > x_min and y_max > y_min):
-        raise ValueError(f"empty search area: x [{x_min}, {x_max}], y [{y_min}, {y_max}]")
-    if not spacing_m > 0.0:
-        raise ValueError(f"spacing_m must be > 0, got {spacing_m}")
+    _check_area(x_min, x_max, y_min, y_max, altitude_m, spacing_m)
     c = np.array(
         [0.5 * (x_min + x_max), 0.5 * (y_min + y_max)] if center_xy is None else center_xy, dtype=np.float64
     ).reshape(-1)

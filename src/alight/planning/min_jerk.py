@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from alight.numerics.poly import positive_real_roots_into, quadratic_roots
 from alight.types import GRAVITY_MPS2, FloatArray
 
 __all__ = [
@@ -170,30 +171,12 @@ def _section_verdict(a0, s, alpha, beta, gamma, i, t1, t2, fmin, fmax, wmax):  #
         x2 = a0k + t2 * (ga + t2 * (0.5 * be + t2 * al / 6.0))
         lo = min(x1, x2)
         hi = max(x1, x2)
-        # roots of (al/2) t^2 + be t + ga, in the cancellation-free form
-        qa = 0.5 * al
-        if qa != 0.0:
-            disc = be * be - 4.0 * qa * ga
-            if disc >= 0.0:
-                sq = math.sqrt(disc)
-                q = -0.5 * (be + sq) if be >= 0.0 else -0.5 * (be - sq)
-                if q != 0.0:
-                    r = q / qa
-                    if t1 < r < t2:
-                        x = a0k + r * (ga + r * (0.5 * be + r * al / 6.0))
-                        lo = min(lo, x)
-                        hi = max(hi, x)
-                    r = ga / q
-                    if t1 < r < t2:
-                        x = a0k + r * (ga + r * (0.5 * be + r * al / 6.0))
-                        lo = min(lo, x)
-                        hi = max(hi, x)
-                else:  # be = 0 and ga = 0: a double root at 0, never inside (t1 >= 0)
-                    pass
-        elif be != 0.0:
-            r = -ga / be
-            if t1 < r < t2:
-                x = a0k + r * (ga + r * (0.5 * be))
+        # roots of jerk_k = (al/2) t^2 + be t + ga (cancellation-free; a double root at 0 is never
+        # inside since t1 >= 0)
+        _, r1, r2 = quadratic_roots(0.5 * al, be, ga)
+        for r in (r1, r2):
+            if t1 < r < t2:  # False for a missing root (NaN)
+                x = a0k + r * (ga + r * (0.5 * be + r * al / 6.0))
                 lo = min(lo, x)
                 hi = max(hi, x)
         if hi > fmax or -lo > fmax:
@@ -265,54 +248,16 @@ def _input_kernel(a0, alpha, beta, gamma, T, fmin, fmax, wmax, min_section, out)
 
 
 @njit(cache=True)
-def _poly_eval(c, deg, t):  # pragma: no cover
-    y = c[deg]
-    for k in range(deg - 1, -1, -1):
-        y = y * t + c[k]
-    return y
-
-
-@njit(cache=True)
-def _monotone_root(c, deg, a, b, fa, fb):  # pragma: no cover
-    """The root of the polynomial c (ascending powers) on [a, b], where it is monotone and fa, fb differ
-    in sign: Newton's method safeguarded by bisection (never leaves the bracket, so it always converges)."""
-    lo, hi = (a, b) if fa < 0.0 else (b, a)  # c(lo) < 0 < c(hi)
-    x = 0.5 * (a + b)
-    tol = 1e-13 * (abs(a) + abs(b)) + 1e-300
-    for _ in range(100):
-        f = c[deg]
-        df = 0.0
-        for k in range(deg - 1, -1, -1):
-            df = df * x + f
-            f = f * x + c[k]
-        if f < 0.0:
-            lo = x
-        elif f > 0.0:
-            hi = x
-        else:
-            return x
-        xn = x - f / df if df != 0.0 else 0.5 * (lo + hi)
-        if not (min(lo, hi) < xn < max(lo, hi)):
-            xn = 0.5 * (lo + hi)
-        if abs(xn - x) <= tol:
-            return xn
-        x = xn
-    return x
-
-
-@njit(cache=True)
-def _floor_one(p0, v0, a0, s, alpha, beta, gamma, i, T, q, nrm, work):  # pragma: no cover
+def _floor_one(p0, v0, a0, s, alpha, beta, gamma, i, T, q, nrm, work, D):  # pragma: no cover
     """d(t) = n . (pos(t) - q) > 0 on [0, T] (sheet, "Floor feasibility").
 
     A quick accept first: d on [0, T] is a convex combination of its Bernstein coefficients, so all of
-    them positive proves d > 0 (most candidates fly well above the plane and stop here). Otherwise the
-    real roots of d' (quartic) inside (0, T) are found by a derivative cascade: the roots of d'''
-    (quadratic, closed form) split [0, T] into pieces where d'' is monotone; its root on each piece with a
-    sign change splits [0, T] into pieces where d' is monotone; d' then has at most one root on each.
-    Only real roots inside the interval are ever produced. d is checked at each sign change of d' from
-    - to + (the local minima; with d > 0 at both ends these are the only places d can reach 0).
+    them positive proves d > 0 (most candidates fly well above the plane and stop here). Otherwise d's
+    minimum on [0, T] is at an end (both checked positive first) or at a stationary point inside: d is
+    checked at every real root of d' (a quartic) in (0, T] (:mod:`alight.numerics.poly`, which only ever
+    produces real roots inside the interval). Checking the maxima too changes nothing: d <= 0 at any
+    point means the candidate is infeasible. ``work`` (>= 13) and ``D`` (>= (4, 5)) are work arrays.
     """
-    c = work  # ascending coefficients of d, then of its derivatives
     e0 = 0.0
     e1 = 0.0
     e2 = 0.0
@@ -350,87 +295,30 @@ def _floor_one(p0, v0, a0, s, alpha, beta, gamma, i, T, q, nrm, work):  # pragma
         and c0 + 4.0 * s1 / 5.0 + 3.0 * s2 / 5.0 + 2.0 * s3 / 5.0 + s4 / 5.0 > 0.0
     ):
         return True
-    # d' = c1 + 2 c2 t + 3 c3 t^2 + 4 c4 t^3 + 5 c5 t^4, d'' and d''' below
-    d1 = c[0:5]
-    d2 = c[5:9]
+    # d' = c1 + 2 c2 t + 3 c3 t^2 + 4 c4 t^3 + 5 c5 t^4
+    d1 = work[0:5]
+    roots = work[5:9]
+    crit = work[9:13]
     d1[0] = c1
     d1[1] = 2.0 * c2
     d1[2] = 3.0 * c3
     d1[3] = 4.0 * c4
     d1[4] = 5.0 * c5
-    d2[0] = 2.0 * c2
-    d2[1] = 6.0 * c3
-    d2[2] = 12.0 * c4
-    d2[3] = 20.0 * c5
-    # roots of d''' = 6 c3 + 24 c4 t + 60 c5 t^2 inside (0, T), sorted: the breaks of d''
-    br = c[9:15]
-    nb = 0
-    br[nb] = 0.0
-    nb += 1
-    qa = 60.0 * c5
-    qb = 24.0 * c4
-    qc = 6.0 * c3
-    r1 = -1.0
-    r2 = -1.0
-    if qa != 0.0:
-        disc = qb * qb - 4.0 * qa * qc
-        if disc >= 0.0:
-            sq = math.sqrt(disc)
-            qq = -0.5 * (qb + sq) if qb >= 0.0 else -0.5 * (qb - sq)
-            if qq != 0.0:
-                r1 = qq / qa
-                r2 = qc / qq
-    elif qb != 0.0:
-        r1 = -qc / qb
-    if r1 > r2:
-        r1, r2 = r2, r1
-    if 0.0 < r1 < T:
-        br[nb] = r1
-        nb += 1
-    if 0.0 < r2 < T and r2 != r1:
-        br[nb] = r2
-        nb += 1
-    br[nb] = T
-    nb += 1
-    # roots of d'' on each monotone piece: the breaks of d'
-    b1 = c[15:21]
-    m = 0
-    b1[m] = 0.0
-    m += 1
-    fa = _poly_eval(d2, 3, br[0])
-    for j in range(nb - 1):
-        a = br[j]
-        b = br[j + 1]
-        fb = _poly_eval(d2, 3, b)
-        if (fa < 0.0 < fb) or (fb < 0.0 < fa):
-            b1[m] = _monotone_root(d2, 3, a, b, fa, fb)
-            m += 1
-        elif fb == 0.0 and j < nb - 2:
-            b1[m] = b
-            m += 1
-        fa = fb
-    b1[m] = T
-    m += 1
-    # minima of d: sign changes of d' from - to + on each monotone piece
-    ga = _poly_eval(d1, 4, b1[0])
-    for j in range(m - 1):
-        a = b1[j]
-        b = b1[j + 1]
-        gb = _poly_eval(d1, 4, b)
-        if ga < 0.0 and gb >= 0.0:
-            r = b if gb == 0.0 else _monotone_root(d1, 4, a, b, ga, gb)
-            if c0 + r * (c1 + r * (c2 + r * (c3 + r * (c4 + r * c5)))) <= 0.0:
-                return False
-        ga = gb
+    nr = positive_real_roots_into(d1, T, roots, D, crit)
+    for j in range(nr):
+        r = roots[j]
+        if c0 + r * (c1 + r * (c2 + r * (c3 + r * (c4 + r * c5)))) <= 0.0:
+            return False
     return True
 
 
 @njit(cache=True)
 def _floor_kernel(p0, v0, a0, alpha, beta, gamma, T, q, nrm, out):  # pragma: no cover
-    work = np.empty(24)
+    work = np.empty(13)
+    D = np.empty((4, 5))
     ms = p0.shape[0] > 1
     for i in range(T.shape[0]):
-        out[i] = _floor_one(p0, v0, a0, i if ms else 0, alpha, beta, gamma, i, T[i], q, nrm, work)
+        out[i] = _floor_one(p0, v0, a0, i if ms else 0, alpha, beta, gamma, i, T[i], q, nrm, work, D)
 
 
 @njit(cache=True)
@@ -440,7 +328,8 @@ def _evaluate_kernel(  # pragma: no cover
     """Generation, cost, input test and floor test in one pass. limits = (f_min, f_max, w_max, min_sec)."""
     _coefficients_kernel(p0, v0, a0, T, pf, vf, af, mode, alpha, beta, gamma)
     stack = np.empty((_STACK_SIZE, 2))
-    work = np.empty(24)
+    work = np.empty(13)
+    D = np.empty((4, 5))
     fmin = limits[0]
     fmax = limits[1]
     wmax = limits[2]
@@ -452,7 +341,7 @@ def _evaluate_kernel(  # pragma: no cover
         cost[i] = _cost_one(alpha, beta, gamma, i, t)
         codes[i] = _input_one(a0, s, alpha, beta, gamma, i, t, fmin, fmax, wmax, msec, stack)
         if check_floor:
-            floor_ok[i] = _floor_one(p0, v0, a0, s, alpha, beta, gamma, i, t, q, nrm, work)
+            floor_ok[i] = _floor_one(p0, v0, a0, s, alpha, beta, gamma, i, t, q, nrm, work, D)
         else:
             floor_ok[i] = True
 
