@@ -520,9 +520,9 @@ class MavlinkBridge:
             raise RuntimeError("the bridge must not arm when the configuration does not allow it")
         self._command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
 
-    def _retry(self, t: float, every_s: float = 1.0) -> bool:
-        """True once every ``every_s`` while in the current phase (to resend an unanswered command)."""
-        key = f"retry_{self.phase.value}"
+    def _retry(self, t: float, every_s: float = 1.0, what: str = "") -> bool:
+        """True once every ``every_s`` per phase and ``what`` (to resend an unanswered command)."""
+        key = f"retry_{self.phase.value}_{what}"
         if t - self._last.get(key, -math.inf) >= every_s:
             self._last[key] = t
             return True
@@ -632,13 +632,13 @@ class MavlinkBridge:
         cfg = self.config
         if self.phase is Phase.TAKEOFF:
             guided = self._custom_mode_is(PX4_TAKEOFF if cfg.autopilot == "px4" else AP_GUIDED)
-            if not guided:
+            if not guided and not self.ap_armed:
                 if self._retry(t):
                     self._request_mode(PX4_TAKEOFF, AP_GUIDED)
             elif not self.ap_armed:
                 if cfg.arm and self._retry(t):
                     self._arm()
-            elif self._retry(t, 2.0) and p_WB[2] < 0.5 * cfg.takeoff_height_m:
+            elif p_WB[2] < 0.8 * cfg.takeoff_height_m and self._retry(t, 2.0, "takeoff"):
                 self._command_long(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan,
                                    float(cfg.takeoff_height_m))  # fmt: skip
             if self.ap_armed and p_WB[2] > 0.8 * cfg.takeoff_height_m:
@@ -659,7 +659,7 @@ class MavlinkBridge:
 
     def _send_landing_target(self, t: float) -> None:
         target = self.pipeline.target(t)
-        if target is None or t - target.t_last_measurement > 1.0:
+        if target is None or t - target.t_last_measurement > 3.0:  # the estimate carries short gaps
             return
         ego = self.pipeline.ego()
         rel_W = target.p_WP - ego.p_WB

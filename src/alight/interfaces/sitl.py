@@ -453,7 +453,8 @@ class EmulatedAutopilot:
         self.stream_start: float | None = None
         self.hold_p = self.world.x[SL_P].copy()
         self.hold_yaw = 0.0
-        self.takeoff_z = 0.0
+        self.takeoff_z: float | None = None  # set by MAV_CMD_NAV_TAKEOFF; None: the default height
+        self.takeoff_height_m = 2.5  # PX4's MIS_TAKEOFF_ALT default
         self.target: dict[str, Any] | None = None  # alpha-beta state of the landing target
         self.peer_seen = False
         self.peer_lockstep = False
@@ -487,6 +488,8 @@ class EmulatedAutopilot:
             return
         p = self.world.x[SL_P]
         self.mode = mode
+        if mode is FlightMode.TAKEOFF:
+            self.takeoff_z = None
         if mode is FlightMode.HOLD:
             self.hold_p = p.copy()
             self.hold_p[2] = max(p[2], self.airframe.gear_height)
@@ -632,8 +635,8 @@ class EmulatedAutopilot:
             if not self.armed:
                 self._ack(cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
                 return
-            self.takeoff_z = height + self.airframe.gear_height
             self._set_mode(FlightMode.TAKEOFF, "takeoff command")
+            self.takeoff_z = self.hold_p[2] + height
             self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
         else:
             self._ack(cmd, mavlink.MAV_RESULT_UNSUPPORTED)
@@ -668,8 +671,9 @@ class EmulatedAutopilot:
                 p_ref, v_ref, a_ref = sp.p, sp.v, sp.a
                 yaw = self.hold_yaw if sp.yaw is None else sp.yaw
             elif self.mode is FlightMode.TAKEOFF:
-                p_ref = np.array([self.hold_p[0], self.hold_p[1], self.takeoff_z])
-                if p[2] > self.takeoff_z - 0.1 and abs(v[2]) < 0.2:
+                z = self.hold_p[2] + self.takeoff_height_m if self.takeoff_z is None else self.takeoff_z
+                p_ref = np.array([self.hold_p[0], self.hold_p[1], z])
+                if p[2] > z - 0.1 and abs(v[2]) < 0.2:
                     self._set_mode(FlightMode.HOLD, "takeoff done")
             elif self.mode in (FlightMode.LAND, FlightMode.PRECLAND):
                 descent = self.config.land_descent_mps
