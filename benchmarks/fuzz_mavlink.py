@@ -44,7 +44,11 @@ _INT_RANGE = {
 
 def _random_value(rng: np.random.Generator, ftype: str) -> Any:
     if ftype in ("float", "double"):
-        return _FLOATS[rng.integers(len(_FLOATS))] if rng.random() < 0.6 else float(rng.normal() * 10 ** rng.integers(0, 6))
+        return (
+            _FLOATS[rng.integers(len(_FLOATS))]
+            if rng.random() < 0.6
+            else float(rng.normal() * 10 ** rng.integers(0, 6))
+        )
     if ftype == "char":
         return bytes(rng.integers(0, 256, size=rng.integers(0, 10), dtype=np.uint8)).decode("latin-1")
     lo, hi = _INT_RANGE.get(ftype, (0, 255))
@@ -151,10 +155,15 @@ def run(n: int = 100_000, seed: int = 0) -> dict[str, Any]:
             back = ap.t - float(rng.uniform(0.0, 10.0))
             m = ap.mav
             if rng.random() < 0.5:
-                msg = m.highres_imu_encode(max(int(back * 1e6), 0), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 1013, 0, 0, 20, 63)
+                msg = m.highres_imu_encode(
+                    max(int(back * 1e6), 0), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 1013, 0, 0, 20, 63
+                )
             else:
-                msg = m.odometry_encode(max(int(back * 1e6), 0), 1, 1, 0, 0, -2, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0,
-                                        [math.nan] * 21, [math.nan] * 21, 0, 0, 100)  # fmt: skip
+                nan21 = [math.nan] * 21
+                t_us = max(int(back * 1e6), 0)
+                msg = m.odometry_encode(
+                    t_us, 1, 1, 0, 0, -2, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, nan21, nan21, 0, 0, 100
+                )
             data = ap.encode(msg)
         else:
             buf = bytearray(ap.encode(templates[rng.integers(len(templates))]))
@@ -172,8 +181,14 @@ def run(n: int = 100_000, seed: int = 0) -> dict[str, Any]:
     return {
         "buffers": n,
         "seed": seed,
-        "kinds": {k: int(c) for k, c in zip(("tick", "random", "mutated", "truncated", "reordered",
-                                              "backwards", "bitflip"), kinds, strict=True)},  # fmt: skip
+        "kinds": {
+            k: int(c)
+            for k, c in zip(
+                ("tick", "random", "mutated", "truncated", "reordered", "backwards", "bitflip"),
+                kinds,
+                strict=True,
+            )
+        },  # fmt: skip
         "uncaught_exceptions": sum(uncaught.values()),
         "uncaught_by_type": uncaught,
         "non_finite_inputs": spy.non_finite,

@@ -51,7 +51,9 @@ def test_round_trips_and_consistency() -> None:
         np.testing.assert_allclose(back, q_enu, atol=1e-12)
         R_ned = frames.rotmat_enu_flu_to_ned_frd(quat_to_rotmat(q_enu))
         q_ned = frames.q_WB_to_mavlink(q_enu)
-        np.testing.assert_allclose(Rotation.from_quat(q_ned, scalar_first=True).as_matrix(), R_ned, atol=1e-12)
+        np.testing.assert_allclose(
+            Rotation.from_quat(q_ned, scalar_first=True).as_matrix(), R_ned, atol=1e-12
+        )
         np.testing.assert_allclose(frames.rotmat_ned_frd_to_enu_flu(R_ned), quat_to_rotmat(q_enu), atol=1e-12)
         # a body vector rotated into the world gives the same world vector in both conventions
         v_B = rng.normal(size=3)

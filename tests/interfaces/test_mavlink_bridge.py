@@ -143,7 +143,9 @@ def test_rates_setpoint_is_frd_and_normalised(monkeypatch: pytest.MonkeyPatch) -
     sp = cap.of_type("SET_ATTITUDE_TARGET")[-1]
     assert sp.type_mask == MASK_RATES_THRUST
     assert sp.thrust == pytest.approx(9.81 / MAX_THRUST, rel=1e-6)
-    np.testing.assert_allclose([sp.body_roll_rate, sp.body_pitch_rate, sp.body_yaw_rate], [0.1, -0.2, -0.3], rtol=1e-6)
+    np.testing.assert_allclose(
+        [sp.body_roll_rate, sp.body_pitch_rate, sp.body_yaw_rate], [0.1, -0.2, -0.3], rtol=1e-6
+    )
 
 
 def test_receive_path_drops_bad_fields() -> None:
@@ -167,7 +169,9 @@ def test_receive_path_drops_bad_fields() -> None:
         m.highres_imu_encode(int(0.1e6), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 63),  # backwards
         m.highres_imu_encode(int(90e6), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 63),  # 90 s jump
         m.highres_imu_encode(int(0.6e6), 1e9, 0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 63),  # beyond 16 g
-        m.odometry_encode(int(0.6e6), 1, 1, math.inf, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, [0] * 21, [0] * 21),
+        m.odometry_encode(
+            int(0.6e6), 1, 1, math.inf, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, [0] * 21, [0] * 21
+        ),
         m.odometry_encode(int(0.6e6), 1, 1, 0, 0, 0, [0, 0, 0, 0], 0, 0, 0, 0, 0, 0, [0] * 21, [0] * 21),
         m.odometry_encode(int(0.6e6), 12, 1, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, [0] * 21, [0] * 21),
         m.distance_sensor_encode(600, 0, 1400, 200, 0, 0, 0, 0),  # facing forward, not down
@@ -175,7 +179,11 @@ def test_receive_path_drops_bad_fields() -> None:
     for msg in bad:
         bridge.feed_bytes(ap.encode(msg))
     foreign = FakeAutopilot(sysid=42)
-    bridge.feed_bytes(foreign.encode(foreign.mav.highres_imu_encode(int(0.7e6), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 63)))
+    bridge.feed_bytes(
+        foreign.encode(
+            foreign.mav.highres_imu_encode(int(0.7e6), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 63)
+        )
+    )
     assert len(fed) == n_before
     assert bridge.stats.rejected["HIGHRES_IMU"] == 4 and bridge.stats.rejected["ODOMETRY"] == 3
     assert bridge.stats.rejected["DISTANCE_SENSOR"] == 1 and bridge.stats.foreign >= 1

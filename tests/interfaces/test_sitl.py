@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import os
 import select
-import socket
 import threading
 import time
 from typing import Any
@@ -17,6 +16,7 @@ import pytest
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
+from tests_interfaces_ports import free_port_pair  # noqa: E402
 
 from alight.airframe import DEFAULT_AIRFRAME  # noqa: E402
 from alight.interfaces.sitl import (  # noqa: E402
@@ -33,21 +33,6 @@ from alight.sim.quadrotor import SL_P, SL_Q, SL_V  # noqa: E402
 from alight.types import quat_to_rotmat  # noqa: E402
 
 
-def free_port_pair() -> int:
-    """A UDP port whose TCP neighbour (the camera stream) is free too."""
-    for _ in range(50):
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as u:
-            u.bind(("127.0.0.1", 0))
-            port = u.getsockname()[1]
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as t:
-            try:
-                t.bind(("127.0.0.1", port + 1))
-                return port
-            except OSError:
-                continue
-    raise RuntimeError("no free port pair")
-
-
 @pytest.mark.parametrize("flavour", ["px4", "ardupilot"])
 def test_mode_numbers_round_trip(flavour: str) -> None:
     for mode in FlightMode:
@@ -58,7 +43,10 @@ def test_mode_numbers_round_trip(flavour: str) -> None:
         assert encode_mode("px4", FlightMode.OFFBOARD) == 6 << 16
         assert encode_mode("px4", FlightMode.PRECLAND) == (4 << 16) | (9 << 24)
     else:
-        assert encode_mode("ardupilot", FlightMode.OFFBOARD) == 4 and encode_mode("ardupilot", FlightMode.LAND) == 9
+        assert (
+            encode_mode("ardupilot", FlightMode.OFFBOARD) == 4
+            and encode_mode("ardupilot", FlightMode.LAND) == 9
+        )
 
 
 def test_position_controller_takes_off_and_holds_a_point() -> None:
@@ -167,7 +155,11 @@ def test_offboard_rules_and_loss_failsafe_within_com_of_loss_t() -> None:
     assert 1.0 <= gap <= 1.0 + 0.0101  # COM_OF_LOSS_T, checked every 10 ms control period
     modes = [e for e in ap.events if e["event"] == "mode"]
     assert modes[-1]["mode"] == "hold" and modes[-1]["t"] == failsafe[0]["t"]
-    assert any("Offboard lost" in t for t in client.texts), (client.texts, len(client.heartbeats), client.acks)
+    assert any("Offboard lost" in t for t in client.texts), (
+        client.texts,
+        len(client.heartbeats),
+        client.acks,
+    )
     # It was flying when the stream stopped, and the failsafe hold kept it in the air, near where it was.
     log = ap.truth_arrays()
     k = int(np.searchsorted(log["t"], failsafe[0]["t"]))

@@ -146,7 +146,7 @@ class FrameServer:
 
     def send_truth_log(self, arrays: dict[str, np.ndarray]) -> bool:
         buf = io.BytesIO()
-        np.savez(buf, **arrays)
+        np.savez(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as its own flags
         return self._send(encode_message(KIND_TRUTH_LOG, buf.getvalue()))
 
     def close(self) -> None:

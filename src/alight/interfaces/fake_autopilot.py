@@ -50,7 +50,7 @@ class _Sink:
 
 @dataclass
 class FakeAutopilot:
-    """Encodes one 200 Hz tick at a time of a vehicle at ``p_ned`` (m, NED) with attitude ``q`` (w, x, y, z)."""
+    """Encodes one 200 Hz tick at a time of a vehicle at ``p_ned`` (m, NED), attitude ``q`` (w, x, y, z)."""
 
     sysid: int = 1
     compid: int = 1
@@ -86,13 +86,17 @@ class FakeAutopilot:
         m.highres_imu_send(t_us, *f_frd, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1013.0, 0.0, 0.0, 20.0, 63)
         if self.k % 5 == 0 and self.odometry:
             nan21 = [math.nan] * 21
-            m.odometry_send(t_us, 1, 1, *self.p_ned, list(self.q), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, nan21, nan21, 0, 0, 100)
+            m.odometry_send(
+                t_us, 1, 1, *self.p_ned, list(self.q), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, nan21, nan21, 0, 0, 100
+            )
         if self.k % 2 == 0:
             cm = int(round(-self.p_ned[2] * 100))
             m.distance_sensor_send(t_ms, 0, 1400, cm, 0, 0, mavlink.MAV_SENSOR_ROTATION_PITCH_270, 0)
         if (self.k % 200 == 1 or self.announce) and self.heartbeat:
             self.announce = False
-            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
+            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+                mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0
+            )
             m.heartbeat_send(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, self.custom_mode, 4)
         out = bytes(self._sink.buf)
         self._sink.buf.clear()

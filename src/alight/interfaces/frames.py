@@ -118,4 +118,5 @@ def euler_ned_frd_to_q_WB(roll: float, pitch: float, yaw: float) -> FloatArray:
 
 def cov_enu_to_ned(P: FloatArray) -> FloatArray:
     """A 3x3 world covariance, ENU <-> NED: ``M P M^T``."""
-    return M_ENU_NED @ np.asarray(P, dtype=np.float64) @ M_ENU_NED.T
+    out: FloatArray = M_ENU_NED @ np.asarray(P, dtype=np.float64) @ M_ENU_NED.T
+    return out

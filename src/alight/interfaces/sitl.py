@@ -101,10 +101,11 @@ from alight.evaluation.physics import (  # noqa: E402
     N_IN,
     tick_batch,
 )
-from alight.evaluation.runner import POST_CONTACT_S, TICK_DT, PHYSICS_DT, _place_platform, _wind  # noqa: E402
+from alight.evaluation.runner import PHYSICS_DT, POST_CONTACT_S, TICK_DT, _place_platform, _wind  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, encode_message  # noqa: E402
 from alight.mission.presets import build_preset  # noqa: E402
+from alight.pads import PadDesign  # noqa: E402
 from alight.scenario import Scenario  # noqa: E402
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params  # noqa: E402
 from alight.sim.render import Renderer, RenderOptions  # noqa: E402
@@ -315,7 +316,7 @@ class SimWorld:
         preset = build_preset(s, airframe, rng_pipe)
         self.mount = preset.mount
         self.renderer: Renderer | None = None
-        if preset.uses_camera:
+        if preset.uses_camera and preset.camera is not None and isinstance(preset.pad, PadDesign):
             cs = s.camera
             color = preset.color_camera if cs.color is None else cs.color
             distractors = None if cs.distractors is None else DistractorSpec(**cs.distractors.model_dump())
@@ -344,7 +345,7 @@ class SimWorld:
         self.inputs[IN_SUPPORTED] = 1.0
         self.n_sub = round(TICK_DT / PHYSICS_DT)
         self.n_ticks = int(round(s.duration_s / TICK_DT))
-        self.truths = self.platform.states(np.arange(self.n_ticks + 1) * TICK_DT)
+        self.truths = self.platform.states(np.arange(self.n_ticks + 1, dtype=np.float64) * TICK_DT)
         self.k = 0
         self.airborne = False
         self.contact: Contact | None = None
@@ -404,7 +405,8 @@ class SimWorld:
             inputs[IN_SUPPORT_Z] = float(truth.p_WP[2])
             inputs[IN_SUPPORT_V : IN_SUPPORT_V + 3] = truth.v_WP
             inputs[IN_MOTORS_ON] = 0.0
-        return imus[0]
+        sample: FloatArray = imus[0]
+        return sample
 
     def range_m(self) -> float:
         k = self.k
@@ -468,8 +470,8 @@ class EmulatedAutopilot:
         self._last_hb_t = -1.0
         self.motor_t: list[float] = []
         self.motor_N: list[FloatArray] = []
-        self.log: dict[str, list[Any]] = {k: [] for k in ("t", "p_WB", "v_WB", "p_WP", "v_WP", "thrust_N",
-                                                          "w_cmd", "w_WB_B", "f_wind_W", "motor_N")}  # fmt: skip
+        channels = ("t", "p_WB", "v_WB", "p_WP", "v_WP", "thrust_N", "w_cmd", "w_WB_B", "f_wind_W", "motor_N")
+        self.log: dict[str, list[Any]] = {k: [] for k in channels}
         self.thrust_N = 0.0
         self.w_cmd = np.zeros(3)
 
@@ -827,9 +829,8 @@ class EmulatedAutopilot:
         wall0 = time.monotonic()
         while not self.peer_seen:
             if time.monotonic() - wall0 > cfg.wait_for_peer_s:
-                raise InputError(
-                    f"sitl: no companion HEARTBEAT on udp {cfg.host}:{cfg.port} within {cfg.wait_for_peer_s:g} s"
-                )
+                where = f"udp {cfg.host}:{cfg.port}"
+                raise InputError(f"sitl: no companion HEARTBEAT on {where} within {cfg.wait_for_peer_s:g} s")
             self._poll(0.1)
         self._event("start")
         wall_start = time.monotonic()
