@@ -203,3 +203,16 @@ def test_short_fuzz_run() -> None:
     assert report["non_finite_inputs"] == 0
     assert report["max_buffer_s"] < 2.0
     assert report["accepted_messages"] > 100  # the valid part of the stream still gets through
+
+
+def test_cli_reports_an_unopenable_camera_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from alight.cli import main
+
+    missing = tmp_path / "no_such_video.mp4"
+    rc = main(
+        ["bridge", "--connect", "udp:127.0.0.1:9", "--out", str(tmp_path / "o"), "--camera", str(missing)]
+    )
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "cannot open" in err and str(missing) in err

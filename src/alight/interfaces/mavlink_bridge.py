@@ -471,10 +471,9 @@ class MavlinkBridge:
         self.frame_times.append(t)
         if not self.pipeline.ego_estimator.initialized:
             return
-        _, measurements = self.pipeline.on_image(t_cap, image)
+        self._feed(self.pipeline.on_image, t_cap, image)
         if self.config.mode == "landing-target" and self.phase in (Phase.SEARCH, Phase.PRECLAND):
             self._send_landing_target(t)
-        del measurements
 
     def note_wall_clock(self) -> None:
         """Refresh the companion-to-autopilot clock offset (for a companion-clock camera)."""
