@@ -165,3 +165,38 @@ def test_offboard_rules_and_loss_failsafe_within_com_of_loss_t() -> None:
     k = int(np.searchsorted(log["t"], failsafe[0]["t"]))
     assert log["p_WB"][k, 2] > 1.0
     assert np.linalg.norm(log["p_WB"][-1] - log["p_WB"][k]) < 0.5
+
+
+def test_ardupilot_guided_stops_after_guid_timeout_and_stays_guided() -> None:
+    port = free_port_pair()
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 7.0, "seed": 0})
+    ap = EmulatedAutopilot(scenario, SitlConfig(port=port, lockstep=False, flavour="ardupilot", speed=1.0))
+    thread = threading.Thread(target=ap.run, daemon=True)
+    thread.start()
+    client = Client(port)
+    try:
+        client.conn.mav.heartbeat_send(18, 8, 0, 0, 0)
+        time.sleep(0.2)
+        assert client.command(176, 1, 4) == mavlink.MAV_RESULT_ACCEPTED  # GUIDED needs no stream first
+        assert client.command(400, 1) == mavlink.MAV_RESULT_ACCEPTED
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 2.0:
+            client.hold_setpoint()
+            client.drain()
+            time.sleep(0.02)
+        while thread.is_alive():
+            client.drain()
+            time.sleep(0.01)
+    finally:
+        thread.join(timeout=30)
+        ap.close()
+        client.conn.close()
+    stops = [e for e in ap.events if e["event"] == "guided_timeout"]
+    assert len(stops) == 2  # armed in GUIDED before any setpoint, then the stream's end
+    gap = stops[1]["t"] - stops[1]["last_setpoint_t"]
+    assert 3.0 <= gap <= 3.0 + 0.0101  # GUID_TIMEOUT, 3 s by default
+    assert not [e for e in ap.events if e["event"] == "failsafe"] and ap.mode is FlightMode.OFFBOARD
+    assert client.heartbeats[-1].custom_mode == 4  # still GUIDED
+    log = ap.truth_arrays()
+    k = int(np.searchsorted(log["t"], stops[1]["t"]))
+    assert log["p_WB"][k, 2] > 1.0 and np.linalg.norm(log["p_WB"][-1] - log["p_WB"][k]) < 0.5

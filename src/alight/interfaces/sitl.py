@@ -19,7 +19,10 @@ What it emulates
 * The offboard rules: OFFBOARD (or GUIDED) is refused unless setpoints have streamed for more than
   ``offboard_min_stream_s`` (1 s); in OFFBOARD, no setpoint for ``offboard_loss_s`` (PX4's
   ``COM_OF_LOSS_T``, 1 s; ArduPilot's ``GUID_TIMEOUT`` is 3 s) triggers the failsafe action
-  (``failsafe``: ``hold``, PX4's default "Position", or ``land``), announced in a STATUSTEXT.
+  (``failsafe``: ``hold``, PX4's default "Position", or ``land``), announced in a STATUSTEXT. ArduCopter
+  flavour: GUIDED without a setpoint (none yet, or none for GUID_TIMEOUT) stops and holds in place and
+  stays in GUIDED (ArduCopter keeps position targets for ever; the emulator times them out too), and
+  arming in GUIDED needs no stream.
   Accepted setpoints: SET_ATTITUDE_TARGET with body rates and thrust (``type_mask`` 128, thrust
   normalised 0..1 of the airframe's maximum thrust) and SET_POSITION_TARGET_LOCAL_NED in
   MAV_FRAME_LOCAL_NED with any per-axis combination of position, velocity and acceleration plus yaw.
@@ -459,6 +462,8 @@ class EmulatedAutopilot:
         self.takeoff_height_m = 2.5  # PX4's MIS_TAKEOFF_ALT default
         self.target: dict[str, Any] | None = None  # alpha-beta state of the landing target
         self.peer_seen = False
+        self._px4 = config.flavour == "px4"
+        self._guided_stopped = False
         self.peer_lockstep = False
         self.ack_t = -1.0
         self.events: list[dict[str, Any]] = []
@@ -593,7 +598,7 @@ class EmulatedAutopilot:
                 if self.world.contact is not None:
                     self._ack(cmd, mavlink.MAV_RESULT_DENIED)
                     return
-                if self.mode is FlightMode.OFFBOARD and not self._stream_alive(t):
+                if self.mode is FlightMode.OFFBOARD and self._px4 and not self._stream_alive(t):
                     self._ack(cmd, mavlink.MAV_RESULT_DENIED)
                     return
                 self.armed = True
@@ -647,7 +652,17 @@ class EmulatedAutopilot:
     def _control(self) -> None:
         t, x = self.world.t, self.world.x
         p, v, R = x[SL_P], x[SL_V], quat_to_rotmat(x[SL_Q])
-        if self.mode is FlightMode.OFFBOARD and not self._stream_alive(t):
+        guided_stopped = False
+        if self.mode is FlightMode.OFFBOARD and not self._px4:
+            # ArduCopter GUIDED: without setpoints (none yet, or none for GUID_TIMEOUT) the vehicle stops
+            # and holds where it is, and stays in GUIDED.
+            guided_stopped = self.setpoint is None or t - self.setpoint.t > self.config.loss_s
+            if guided_stopped and not self._guided_stopped:
+                self.hold_p = p.copy()
+                self.hold_yaw = yaw_of(R)
+                self._event("guided_timeout", last_setpoint_t=self.setpoint.t if self.setpoint else None)
+            self._guided_stopped = guided_stopped
+        elif self.mode is FlightMode.OFFBOARD and not self._stream_alive(t):
             self._statustext(f"Offboard lost: failsafe {self.config.failsafe}", mavlink.MAV_SEVERITY_WARNING)
             self._event(
                 "failsafe",
@@ -661,14 +676,15 @@ class EmulatedAutopilot:
             self.world.set_command(0.0, np.zeros(3), False)
             self.thrust_N, self.w_cmd = 0.0, np.zeros(3)
             return
-        if self.mode is FlightMode.OFFBOARD and self.setpoint is not None and self.setpoint.kind == "rates":
+        rates = self.setpoint is not None and self.setpoint.kind == "rates"
+        if self.mode is FlightMode.OFFBOARD and rates and not guided_stopped and self.setpoint is not None:
             thrust, w = self.setpoint.thrust_N, self.setpoint.w_B
         else:
             p_ref: FloatArray | None = self.hold_p
             v_ref: FloatArray | None = None
             a_ref: FloatArray | None = None
             yaw = self.hold_yaw
-            if self.mode is FlightMode.OFFBOARD and self.setpoint is not None:
+            if self.mode is FlightMode.OFFBOARD and self.setpoint is not None and not guided_stopped:
                 sp = self.setpoint
                 p_ref, v_ref, a_ref = sp.p, sp.v, sp.a
                 yaw = self.hold_yaw if sp.yaw is None else sp.yaw
