@@ -216,3 +216,34 @@ def test_cli_reports_an_unopenable_camera_in_one_line(
     )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and "cannot open" in err and str(missing) in err
+
+
+def test_scaled_imu_and_local_position_paths_convert_to_enu_flu() -> None:
+    bridge, cap, cam = make_bridge()
+    seen: dict[str, list[tuple[Any, ...]]] = {"on_imu": [], "on_odometry": []}
+    pipe = bridge.pipeline
+    for name in seen:
+        original = getattr(pipe, name)
+
+        def spy(*args: Any, _name: str = name, _orig: Any = original) -> Any:
+            seen[_name].append(args)
+            return _orig(*args)
+
+        setattr(pipe, name, spy)
+    ap = FakeAutopilot()
+    m = ap.mav
+    bridge.feed_bytes(ap.encode(m.heartbeat_encode(2, 12, 1, 3 << 16, 3)))
+    for k in range(1, 41):
+        t_ms = 5 * k
+        bridge.feed_bytes(ap.encode(m.scaled_imu_encode(t_ms, 0, 0, -1000, 10, 0, 0, 0, 0, 0)))
+        if k % 5 == 0:  # level, nose north; 1 m north, 2 m east, 3 m up; moving 0.5 m/s north
+            bridge.feed_bytes(ap.encode(m.attitude_quaternion_encode(t_ms, 1, 0, 0, 0, 0, 0, 0)))
+            bridge.feed_bytes(ap.encode(m.local_position_ned_encode(t_ms, 1.0, 2.0, -3.0, 0.5, 0.0, 0.0)))
+    t, p, q, v = seen["on_odometry"][0]
+    np.testing.assert_allclose(p, [2.0, 1.0, 3.0])
+    np.testing.assert_allclose(v, [0.0, 0.5, 0.0])
+    np.testing.assert_allclose(q, [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-12)  # ENU yaw 90 deg
+    t, f, w = seen["on_imu"][-1]
+    np.testing.assert_allclose(f, [0.0, 0.0, 9.81])  # 1000 mG up in FLU
+    np.testing.assert_allclose(w, [0.01, 0.0, 0.0])  # 10 mrad/s roll
+    assert pipe.ego_estimator.initialized
