@@ -247,3 +247,35 @@ def test_scaled_imu_and_local_position_paths_convert_to_enu_flu() -> None:
     np.testing.assert_allclose(f, [0.0, 0.0, 9.81])  # 1000 mG up in FLU
     np.testing.assert_allclose(w, [0.01, 0.0, 0.0])  # 10 mrad/s roll
     assert pipe.ego_estimator.initialized
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_landing_target_fields(autopilot: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    from alight.types import EgoState, PlatformEstimate
+
+    bridge, cap, cam = make_bridge(mode="landing-target", autopilot=autopilot)
+    bridge.target_sys, bridge.target_comp = 1, 1
+    pipe = bridge.pipeline
+    # level, nose east (ENU yaw 0), 4 m up; the pad 1 m ahead (east), 0.5 m up, seen 0.1 s ago
+    ego = EgoState(2.0, np.array([0.0, 0.0, 4.0]), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3))
+    est = PlatformEstimate(
+        2.0,
+        np.array([1.0, 0.0, 0.5]),
+        np.zeros(3),
+        np.zeros(3),
+        0.0,
+        np.eye(3) * 0.01,
+        t_last_measurement=1.9,
+    )
+    monkeypatch.setattr(pipe, "ego", lambda: ego)
+    monkeypatch.setattr(pipe, "target", lambda t: est)
+    bridge._send_landing_target(2.0)
+    lt = cap.of_type("LANDING_TARGET")[-1]
+    assert lt.time_usec == 2_000_000 and lt.position_valid == 1
+    assert lt.angle_x == pytest.approx(0.0, abs=1e-7)
+    assert lt.angle_y == pytest.approx(math.atan2(-1.0, 3.5), rel=1e-6)  # ahead: negative (+ is aft)
+    assert lt.distance == pytest.approx(math.hypot(1.0, 3.5), rel=1e-6)
+    if autopilot == "px4":  # the pad's absolute position in local NED
+        assert lt.frame == 1 and (lt.x, lt.y, lt.z) == pytest.approx((0.0, 1.0, -0.5))
+    else:  # the vector to the pad in body FRD
+        assert lt.frame == 12 and (lt.x, lt.y, lt.z) == pytest.approx((1.0, 0.0, 3.5))
