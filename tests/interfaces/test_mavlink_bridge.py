@@ -279,3 +279,16 @@ def test_landing_target_fields(autopilot: str, monkeypatch: pytest.MonkeyPatch) 
         assert lt.frame == 1 and (lt.x, lt.y, lt.z) == pytest.approx((0.0, 1.0, -0.5))
     else:  # the vector to the pad in body FRD
         assert lt.frame == 12 and (lt.x, lt.y, lt.z) == pytest.approx((1.0, 0.0, 3.5))
+
+
+def test_silent_link_is_lost_on_the_wall_clock() -> None:
+    # Nothing at all arrives (the autopilot's clock stops too): only the wall clock can tell.
+    bridge, cap, cam = make_bridge(link_timeout_s=0.2)
+    ap = FakeAutopilot()
+    fly(bridge, cap, cam, ap, 0.5)
+    assert not bridge.link_lost()
+    bridge._t_heartbeat_wall -= 5.0  # as if 5 s had passed without a byte
+    assert bridge.link_lost() and bridge.phase is Phase.LINK_LOST
+    n = len(cap.messages)
+    fly(bridge, cap, cam, ap, 1.0)  # even if traffic resumes, it stays stopped
+    assert not [m for m in cap.messages[n:] if m.get_type().startswith("SET_")]
