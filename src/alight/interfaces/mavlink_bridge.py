@@ -88,7 +88,8 @@ class BridgeConfig:
     """No HEARTBEAT from the autopilot for this long (autopilot clock, or wall clock when nothing at all
     arrives) is a lost link."""
     takeoff_height_m: float = 4.0
-    """landing-target mode: height of the autopilot's take-off before the precision landing."""
+    """landing-target mode, ArduPilot: height of the take-off before the precision landing (PX4 climbs
+    to its own MIS_TAKEOFF_ALT)."""
     max_time_jump_s: float = 1.0
     camera_latency_s: float = 0.0
     """Subtracted from a companion-clock camera's timestamps (driver latency)."""
@@ -637,10 +638,16 @@ class MavlinkBridge:
             elif not self.ap_armed:
                 if cfg.arm and self._retry(t):
                     self._arm()
-            elif p_WB[2] < 0.8 * cfg.takeoff_height_m and self._retry(t, 2.0, "takeoff"):
-                self._command_long(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan,
-                                   float(cfg.takeoff_height_m))  # fmt: skip
-            if self.ap_armed and p_WB[2] > 0.8 * cfg.takeoff_height_m:
+            elif cfg.autopilot == "ardupilot":
+                # ArduCopter takes off in GUIDED on MAV_CMD_NAV_TAKEOFF, param7 = height above home (m).
+                if p_WB[2] < 0.8 * cfg.takeoff_height_m and self._retry(t, 2.0, "takeoff"):
+                    self._command_long(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan,
+                                       float(cfg.takeoff_height_m))  # fmt: skip
+                if p_WB[2] > 0.8 * cfg.takeoff_height_m:
+                    self._go(Phase.SEARCH, "took off")
+            elif not guided and p_WB[2] > 1.0:
+                # PX4 AUTO.TAKEOFF climbs by itself once armed, to MIS_TAKEOFF_ALT (its param7 would be
+                # AMSL, which the bridge does not know), then switches to AUTO.LOITER.
                 self._go(Phase.SEARCH, "took off")
         elif self.phase is Phase.SEARCH:
             target = self.pipeline.target(t)

@@ -220,6 +220,8 @@ class SitlConfig:
     precland_descent_mps: float = 0.5
     precland_accept_m: float = 0.3
     precland_lost_s: float = 1.5
+    takeoff_height_m: float = 2.5
+    """Height of a take-off without a MAV_CMD_NAV_TAKEOFF height (PX4's MIS_TAKEOFF_ALT default)."""
     camera_stall_after_s: float | None = None
     """Fault injection: no camera frame is sent after this simulated time."""
     sysid: int = 1
@@ -459,7 +461,7 @@ class EmulatedAutopilot:
         self.hold_p = self.world.x[SL_P].copy()
         self.hold_yaw = 0.0
         self.takeoff_z: float | None = None  # set by MAV_CMD_NAV_TAKEOFF; None: the default height
-        self.takeoff_height_m = 2.5  # PX4's MIS_TAKEOFF_ALT default
+        self.takeoff_height_m = config.takeoff_height_m
         self.target: dict[str, Any] | None = None  # alpha-beta state of the landing target
         self.peer_seen = False
         self._px4 = config.flavour == "px4"
