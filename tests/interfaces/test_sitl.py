@@ -152,7 +152,7 @@ def test_offboard_rules_and_loss_failsafe_within_com_of_loss_t() -> None:
     failsafe = [e for e in ap.events if e["event"] == "failsafe"]
     assert len(failsafe) == 1
     gap = failsafe[0]["t"] - failsafe[0]["last_setpoint_t"]
-    assert 1.0 <= gap <= 1.0 + 0.0101  # COM_OF_LOSS_T, checked every 10 ms control period
+    assert 1.0 - 1e-6 <= gap <= 1.0 + 0.0101  # COM_OF_LOSS_T, checked every 10 ms (times rounded to 1 us)
     modes = [e for e in ap.events if e["event"] == "mode"]
     assert modes[-1]["mode"] == "hold" and modes[-1]["t"] == failsafe[0]["t"]
     assert any("Offboard lost" in t for t in client.texts), (
@@ -191,12 +191,13 @@ def test_ardupilot_guided_stops_after_guid_timeout_and_stays_guided() -> None:
         thread.join(timeout=30)
         ap.close()
         client.conn.close()
-    stops = [e for e in ap.events if e["event"] == "guided_timeout"]
-    assert len(stops) == 2  # armed in GUIDED before any setpoint, then the stream's end
-    gap = stops[1]["t"] - stops[1]["last_setpoint_t"]
-    assert 3.0 <= gap <= 3.0 + 0.0101  # GUID_TIMEOUT, 3 s by default
+    # (a stop before the first setpoint may or may not be seen, depending on when the stream started)
+    stops = [e for e in ap.events if e["event"] == "guided_timeout" and e["last_setpoint_t"] is not None]
+    assert len(stops) == 1
+    gap = stops[0]["t"] - stops[0]["last_setpoint_t"]
+    assert 3.0 - 1e-6 <= gap <= 3.0 + 0.0101  # GUID_TIMEOUT, 3 s by default (event times are rounded to 1 us)
     assert not [e for e in ap.events if e["event"] == "failsafe"] and ap.mode is FlightMode.OFFBOARD
     assert client.heartbeats[-1].custom_mode == 4  # still GUIDED
     log = ap.truth_arrays()
-    k = int(np.searchsorted(log["t"], stops[1]["t"]))
+    k = int(np.searchsorted(log["t"], stops[0]["t"]))
     assert log["p_WB"][k, 2] > 1.0 and np.linalg.norm(log["p_WB"][-1] - log["p_WB"][k]) < 0.5
