@@ -7,6 +7,9 @@
                     [--no-progress] [--limit N]
     alight report DIR
     alight replay LOG --out DIR [--mapping FILE] [--scenario FILE]
+    alight sitl SCENARIO.yaml --port PORT [--flavour px4|ardupilot] [--speed X] [--no-lockstep]
+    alight bridge --connect udp:HOST:PORT --out DIR [--mode offboard|landing-target] [--arm]
+                  [--setpoint rates|position] [--autopilot px4|ardupilot] [--scenario FILE] [--camera SPEC]
 
 Exit status 0 on success, 2 on bad input with one line on stderr that says what is wrong and where.
 """
@@ -193,6 +196,54 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sitl(args: argparse.Namespace) -> int:
+    from alight.interfaces.sitl import SitlConfig, serve
+    from alight.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if args.seed is not None:
+        scenario = scenario.with_seed(args.seed)
+    if not 0 < args.port < 65535:
+        raise AlightError(f"--port must be in 1..65534, got {args.port}")
+    config = SitlConfig(
+        port=args.port,
+        flavour=args.flavour,
+        lockstep=not args.no_lockstep,
+        speed=args.speed,
+        failsafe=args.failsafe,
+        offboard_loss_s=args.offboard_loss_s,
+    )
+    print(
+        f"alight sitl: {args.flavour} on udp 127.0.0.1:{args.port}, camera tcp {args.port + 1}",
+        file=sys.stderr,
+    )
+    r = serve(scenario, config)
+    err = r["touchdown_error_m"]
+    err_txt = "-" if err is None else f"{err:.3f} m"
+    print(f"sitl {r['preset']} seed {r['seed']}: {r['outcome']}, touchdown error {err_txt}, "
+          f"{r['simulated_time_s']:.1f} s simulated in {r['sitl_wall_time_s']:.1f} s")  # fmt: skip
+    return 0
+
+
+def _cmd_bridge(args: argparse.Namespace) -> int:
+    from alight.interfaces.bridge_run import run_bridge
+    from alight.interfaces.mavlink_bridge import BridgeConfig
+
+    config = BridgeConfig(mode=args.mode, autopilot=args.autopilot, setpoint=args.setpoint, arm=args.arm)
+    r = run_bridge(
+        args.connect,
+        args.out,
+        config,
+        scenario_path=args.scenario,
+        camera=args.camera,
+        max_wall_s=args.max_wall_s,
+    )
+    err = r["touchdown_error_m"]
+    err_txt = "-" if err is None else f"{err:.3f} m"
+    print(f"bridge {r['preset']} ({args.mode}): {r['outcome']}, touchdown error {err_txt} -> {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="alight", description="Autonomous landing on moving platforms.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
@@ -251,6 +302,41 @@ def build_parser() -> argparse.ArgumentParser:
         "--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)"
     )
     rpl.set_defaults(func=_cmd_replay)
+
+    sitl = sub.add_parser("sitl", help="serve a scenario's world as an emulated autopilot over MAVLink (UDP)")
+    sitl.add_argument("scenario", help="scenario YAML file")
+    sitl.add_argument("--port", type=int, required=True, help="UDP port to listen on (camera: PORT + 1, TCP)")
+    sitl.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    sitl.add_argument(
+        "--flavour", choices=("px4", "ardupilot"), default="px4", help="which autopilot to emulate"
+    )
+    sitl.add_argument(
+        "--speed", type=float, default=0.0, help="cap on simulated/wall time (0: lockstep, no cap)"
+    )
+    sitl.add_argument("--no-lockstep", action="store_true", help="do not wait for the companion (real time)")
+    sitl.add_argument("--failsafe", choices=("hold", "land"), default="hold", help="action on offboard loss")
+    sitl.add_argument("--offboard-loss-s", type=float, default=None, help="COM_OF_LOSS_T / GUID_TIMEOUT (s)")
+    sitl.set_defaults(func=_cmd_sitl)
+
+    br = sub.add_parser(
+        "bridge", help="run the pipeline against an autopilot over MAVLink; result.json, report"
+    )
+    br.add_argument(
+        "--connect", required=True, help="udp:HOST:PORT (connect), udpin:HOST:PORT, serial device"
+    )
+    br.add_argument("--out", required=True, help="output directory")
+    br.add_argument("--mode", choices=("offboard", "landing-target"), default="offboard")
+    br.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4")
+    br.add_argument("--setpoint", choices=("rates", "position"), default="rates", help="offboard setpoints")
+    br.add_argument("--arm", action="store_true", help="allow the bridge to arm the vehicle")
+    br.add_argument(
+        "--scenario", default=None, help="scenario YAML choosing the preset (default: the emulator's)"
+    )
+    br.add_argument(
+        "--camera", default=None, help="tcp:HOST:PORT, device index, file or URL (default: PORT + 1)"
+    )
+    br.add_argument("--max-wall-s", type=float, default=None, help="stop after this much wall time")
+    br.set_defaults(func=_cmd_bridge)
     return parser
 
 

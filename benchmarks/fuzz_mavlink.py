@@ -1,0 +1,217 @@
+"""Fuzz the MAVLink bridge's receive path.
+
+    python benchmarks/fuzz_mavlink.py [--n 100000] [--seed 0]
+
+Feeds a bridge (the falanga2017 pipeline, offboard, arming allowed) a stream of buffers drawn from seven
+kinds: a valid 5 ms tick of a scripted PX4 (so time advances and the pipeline runs), random bytes (half
+of them starting with the MAVLink 2 magic 0xFD), valid messages with mutated fields (NaN, inf, +-1e38,
+extreme integers; the CRC recomputed by packing, so they pass the parser), truncated frames, a few ticks
+with their messages shuffled, messages with timestamps going backwards, and valid frames with flipped
+bits. Counts: exceptions that escape ``MavlinkBridge.feed_bytes`` (must be 0), non-finite numbers that
+reach the pipeline's ``on_imu`` / ``on_odometry`` / ``on_range`` (must be 0), and the longest time one
+buffer took (a hang shows there). Prints one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from alight.airframe import DEFAULT_AIRFRAME
+from alight.interfaces.fake_autopilot import Capture, FakeAutopilot
+from alight.interfaces.mavlink_bridge import BridgeConfig, MavlinkBridge, mavlink
+from alight.mission.presets import build_preset
+from alight.scenario import Scenario
+
+_FLOATS = (math.nan, math.inf, -math.inf, 1e38, -1e38, 0.0, -0.0, 1e-30)
+_INT_RANGE = {
+    "uint8_t": (0, 255),
+    "int8_t": (-128, 127),
+    "uint16_t": (0, 65535),
+    "int16_t": (-32768, 32767),
+    "uint32_t": (0, 2**32 - 1),
+    "int32_t": (-(2**31), 2**31 - 1),
+    "uint64_t": (0, 2**64 - 1),
+    "int64_t": (-(2**63), 2**63 - 1),
+}
+
+
+def _random_value(rng: np.random.Generator, ftype: str) -> Any:
+    if ftype in ("float", "double"):
+        return (
+            _FLOATS[rng.integers(len(_FLOATS))]
+            if rng.random() < 0.6
+            else float(rng.normal() * 10 ** rng.integers(0, 6))
+        )
+    if ftype == "char":
+        return bytes(rng.integers(0, 256, size=rng.integers(0, 10), dtype=np.uint8)).decode("latin-1")
+    lo, hi = _INT_RANGE.get(ftype, (0, 255))
+    if rng.random() < 0.5:
+        return int(lo if rng.random() < 0.5 else hi)
+    return int(rng.integers(lo, hi, endpoint=True, dtype=np.uint64 if lo == 0 else np.int64))
+
+
+def _mutate(msg: Any, rng: np.random.Generator) -> Any:
+    m = copy.copy(msg)
+    for name, ftype in zip(m.fieldnames, m.fieldtypes, strict=True):
+        if rng.random() > 0.3:
+            continue
+        value = getattr(m, name)
+        if isinstance(value, list):
+            value = list(value)
+            for i in range(len(value)):
+                if rng.random() < 0.5:
+                    value[i] = _random_value(rng, ftype)
+            setattr(m, name, value)
+        else:
+            setattr(m, name, _random_value(rng, ftype))
+    return m
+
+
+class _Spy:
+    """Wraps the pipeline's sensor inputs and counts non-finite numbers in them."""
+
+    def __init__(self, pipeline: Any) -> None:
+        self.non_finite = 0
+        self.calls = 0
+        for name in ("on_imu", "on_odometry", "on_range"):
+            setattr(pipeline, name, self._wrap(getattr(pipeline, name)))
+
+    def _wrap(self, fn: Any) -> Any:
+        def spy(*args: Any) -> Any:
+            self.calls += 1
+            for a in args:
+                if a is not None and not np.all(np.isfinite(np.asarray(a, dtype=float))):
+                    self.non_finite += 1
+            return fn(*args)
+
+        return spy
+
+
+def _templates(ap: FakeAutopilot) -> list[Any]:
+    m, t_us, t_ms = ap.mav, 1_000_000, 1000
+    nan21 = [math.nan] * 21
+    return [
+        m.heartbeat_encode(2, 12, 129, 6 << 16, 4),
+        m.highres_imu_encode(t_us, 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 1013, 0, 0, 20, 63),
+        m.scaled_imu_encode(t_ms, 0, 0, -1000, 0, 0, 0, 0, 0, 0),
+        m.attitude_encode(t_ms, 0.1, 0.1, 0.5, 0, 0, 0),
+        m.attitude_quaternion_encode(t_ms, 1, 0, 0, 0, 0, 0, 0),
+        m.local_position_ned_encode(t_ms, 1, 2, -3, 0, 0, 0),
+        m.odometry_encode(t_us, 1, 12, 1, 2, -3, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, nan21, nan21, 0, 0, 100),
+        m.distance_sensor_encode(t_ms, 0, 1400, 300, 0, 0, 25, 0),
+        m.extended_sys_state_encode(0, 2),
+        m.timesync_encode(0, 123),
+        m.named_value_int_encode(t_ms, b"FRAMESEQ", 5),
+        m.named_value_int_encode(t_ms, b"LOCKSTEP", 1),
+        m.command_ack_encode(176, 0),
+        m.statustext_encode(4, b"hello"),
+    ]
+
+
+def run(n: int = 100_000, seed: int = 0) -> dict[str, Any]:
+    """Fuzz ``n`` buffers; returns the counts (see the module docstring)."""
+    rng = np.random.default_rng(seed)
+    scenario = Scenario.model_validate({"preset": "falanga2017", "seed": seed})
+    preset = build_preset(scenario, DEFAULT_AIRFRAME, np.random.default_rng(seed))
+    bridge = MavlinkBridge(preset.pipeline, BridgeConfig(arm=True), link=Capture())
+    spy = _Spy(preset.pipeline)
+    ap = FakeAutopilot()
+    ap.offboard(armed=True)  # so the bridge engages and the pipeline runs under the fuzz
+    templates = _templates(ap)
+    uncaught: dict[str, int] = {}
+    max_s = 0.0
+    kinds = np.zeros(7, dtype=int)
+    t0 = time.perf_counter()
+    for _ in range(n):
+        kind = int(rng.integers(7))
+        kinds[kind] += 1
+        if kind == 0:
+            data = ap.tick()
+        elif kind == 1:
+            data = bytes(rng.integers(0, 256, size=int(rng.integers(1, 300)), dtype=np.uint8))
+            if rng.random() < 0.5:
+                data = b"\xfd" + data
+        elif kind == 2:
+            try:
+                data = ap.encode(_mutate(templates[rng.integers(len(templates))], rng))
+            except Exception:  # noqa: BLE001 - a mutation pymavlink itself cannot pack: not a bridge input
+                continue
+        elif kind == 3:
+            full = ap.encode(templates[rng.integers(len(templates))])
+            data = full[: int(rng.integers(1, len(full)))]
+        elif kind == 4:
+            parts = [ap.tick() for _ in range(int(rng.integers(2, 6)))]
+            msgs = [bytes(x.get_msgbuf()) for p in parts for x in (Capture.decode(p))]
+            rng.shuffle(msgs)
+            data = b"".join(msgs)
+        elif kind == 5:
+            back = ap.t - float(rng.uniform(0.0, 10.0))
+            m = ap.mav
+            if rng.random() < 0.5:
+                msg = m.highres_imu_encode(
+                    max(int(back * 1e6), 0), 0, 0, -9.81, 0, 0, 0, 0, 0, 0, 1013, 0, 0, 20, 63
+                )
+            else:
+                nan21 = [math.nan] * 21
+                t_us = max(int(back * 1e6), 0)
+                msg = m.odometry_encode(
+                    t_us, 1, 1, 0, 0, -2, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, nan21, nan21, 0, 0, 100
+                )
+            data = ap.encode(msg)
+        else:
+            buf = bytearray(ap.encode(templates[rng.integers(len(templates))]))
+            for _ in range(int(rng.integers(1, 4))):
+                buf[int(rng.integers(len(buf)))] ^= 1 << int(rng.integers(8))
+            data = bytes(buf)
+        start = time.perf_counter()
+        try:
+            bridge.feed_bytes(data)
+        except Exception as err:  # noqa: BLE001 - what the fuzzer exists to count
+            key = f"{type(err).__name__}: {str(err)[:80]}"
+            uncaught[key] = uncaught.get(key, 0) + 1
+        max_s = max(max_s, time.perf_counter() - start)
+    wall = time.perf_counter() - t0
+    return {
+        "buffers": n,
+        "seed": seed,
+        "kinds": {
+            k: int(c)
+            for k, c in zip(
+                ("tick", "random", "mutated", "truncated", "reordered", "backwards", "bitflip"),
+                kinds,
+                strict=True,
+            )
+        },  # fmt: skip
+        "uncaught_exceptions": sum(uncaught.values()),
+        "uncaught_by_type": uncaught,
+        "non_finite_inputs": spy.non_finite,
+        "pipeline_inputs": spy.calls,
+        "accepted_messages": sum(bridge.stats.accepted.values()),
+        "rejected_messages": sum(bridge.stats.rejected.values()),
+        "parse_errors": bridge.stats.parse_errors,
+        "foreign_messages": bridge.stats.foreign,
+        "autopilot_time_s": round(bridge.t_ap, 3) if math.isfinite(bridge.t_ap) else None,
+        "final_phase": bridge.phase.value,
+        "max_buffer_s": round(max_s, 4),
+        "wall_time_s": round(wall, 2),
+        "mavlink_wire_version": mavlink.WIRE_PROTOCOL_VERSION,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--n", type=int, default=100_000, help="number of buffers")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    print(json.dumps(run(args.n, args.seed)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,233 @@
+"""``alight bridge``: connect a :class:`~alight.interfaces.mavlink_bridge.MavlinkBridge` to an autopilot,
+fly, and write ``result.json``, the log and ``report.html`` like ``alight fly``.
+
+Against the emulated autopilot (``alight sitl``) the scenario comes from the emulator (on its camera
+stream, so both sides build the same camera, pad and preset), and so do the verdict (landed / crashed /
+timeout, judged from ground truth) and the ground-truth log, which is merged with the bridge's own log
+of estimates. Against a real autopilot the scenario file given with ``--scenario`` chooses the preset,
+there is no ground truth, and ``outcome`` is ``null`` unless the link was lost.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import alight
+from alight.airframe import DEFAULT_AIRFRAME
+from alight.errors import ConfigError, InputError
+from alight.evaluation.log import MissionLog, save_arrays
+from alight.evaluation.mission_io import write_result
+from alight.evaluation.report import write_mission_report
+from alight.interfaces.camera_source import CameraSource, SocketCameraSource, open_camera
+from alight.interfaces.mavlink_bridge import BridgeConfig, MavlinkBridge, Phase, open_link, pump
+from alight.mission.presets import build_preset
+from alight.scenario import Scenario, load_scenario
+
+_TRUTH = ("p_WB", "v_WB", "p_WP", "v_WP", "thrust_N", "w_cmd", "w_WB_B", "f_wind_W", "motor_N")
+
+
+def _default_camera(connect: str) -> str | None:
+    # The emulated autopilot serves its camera on the MAVLink port + 1.
+    if connect.startswith("udp:"):
+        host, _, port = connect[4:].rpartition(":")
+        if port.isdigit():
+            return f"tcp:{host or '127.0.0.1'}:{int(port) + 1}"
+    return None
+
+
+def run_bridge(
+    connect: str,
+    out_dir: str | Path,
+    config: BridgeConfig,
+    *,
+    scenario_path: str | Path | None = None,
+    camera: str | None = None,
+    max_wall_s: float | None = None,
+    report: bool = True,
+) -> dict[str, Any]:
+    """Fly through the autopilot at ``connect`` and write the outputs into ``out_dir``; returns the result."""
+    wall0 = time.perf_counter()
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
+    cam_spec = camera or _default_camera(connect)
+    if cam_spec is None:
+        raise ConfigError("bridge: give --camera (a device index, file, URL or tcp:HOST:PORT)")
+    cam: CameraSource = open_camera(cam_spec)
+    emulator = isinstance(cam, SocketCameraSource)
+    try:
+        scenario = _scenario(cam, scenario_path)
+        seeds = np.random.SeedSequence(scenario.seed).spawn(8)
+        preset = build_preset(scenario, DEFAULT_AIRFRAME, np.random.default_rng(seeds[7]))
+        if not preset.uses_camera:
+            raise ConfigError(
+                f"bridge: preset {scenario.preset!r} has no camera; the bridge needs a vision preset"
+            )
+        conn = open_link(connect)
+        bridge = MavlinkBridge(
+            preset.pipeline, config, link=conn, camera=cam, planner_rate_hz=scenario.planner.rate_hz
+        )
+        try:
+            _loop(bridge, conn, cam, emulator, max_wall_s)
+        finally:
+            conn.close()
+        verdict = None
+        truth = None
+        if isinstance(cam, SocketCameraSource):
+            cam.wait_closed(10.0 if cam.result is not None else 0.5)
+            verdict, truth = cam.result, cam.truth_log
+    finally:
+        cam.close()
+    result, log_arrays, events = _outputs(
+        scenario, bridge, config, verdict, truth, time.perf_counter() - wall0
+    )
+    save_arrays(log_arrays, out)
+    if report:
+        write_mission_report(out, result, log_arrays, events)
+    write_result(out, result)
+    return result
+
+
+def _scenario(cam: CameraSource, path: str | Path | None) -> Scenario:
+    if path is not None:
+        return load_scenario(path)
+    if isinstance(cam, SocketCameraSource):
+        deadline = time.monotonic() + 10.0
+        while cam.scenario is None and time.monotonic() < deadline and cam.open:
+            cam.poll()
+            time.sleep(0.01)
+        if cam.scenario is not None:
+            try:
+                return Scenario.model_validate(cam.scenario)
+            except ValueError as err:
+                raise InputError(f"bridge: the emulator's scenario is invalid ({err})") from None
+    raise ConfigError("bridge: give --scenario (the emulated autopilot sends its own; this source did not)")
+
+
+def _loop(
+    bridge: MavlinkBridge, conn: Any, cam: CameraSource, emulator: bool, max_wall_s: float | None
+) -> None:
+    start = time.monotonic()
+    last_hb = -math.inf
+    while True:
+        now = time.monotonic()
+        if now - last_hb >= 1.0:
+            bridge.send_heartbeat()
+            last_hb = now
+        pump(bridge, conn, 0.02)
+        bridge.note_wall_clock()
+        if isinstance(cam, SocketCameraSource):
+            cam.poll()
+            if cam.result is not None:
+                return
+        if bridge.link_lost():
+            return
+        if bridge.phase in (Phase.DONE, Phase.RELEASED) and not emulator:
+            return
+        if max_wall_s is not None and now - start > max_wall_s:
+            bridge._event("stopped", reason="max wall time")
+            return
+
+
+def _outputs(
+    scenario: Scenario,
+    bridge: MavlinkBridge,
+    config: BridgeConfig,
+    verdict: dict[str, Any] | None,
+    truth: dict[str, np.ndarray] | None,
+    wall_s: float,
+) -> tuple[dict[str, Any], dict[str, np.ndarray], dict[str, float | None]]:
+    pipe = bridge.pipeline
+    log = MissionLog()
+    rows = bridge.log_rows
+    t_rows = np.array([r["t"] for r in rows]) if rows else np.zeros(0)
+    truth_at: dict[str, np.ndarray] = {}
+    if truth is not None and "t" in truth and truth["t"].size > 1 and t_rows.size:
+        for name in _TRUTH:
+            col = truth.get(name)
+            if col is None:
+                continue
+            col2 = col.reshape(col.shape[0], -1)
+            truth_at[name] = np.column_stack(
+                [np.interp(t_rows, truth["t"], col2[:, j]) for j in range(col2.shape[1])]
+            )
+    for i, r in enumerate(rows):
+        ch = {k: v for k, v in r.items() if k not in ("t", "mode") and v is not None}
+        for name, arr in truth_at.items():
+            ch[name] = arr[i] if arr.shape[1] > 1 else float(arr[i, 0])
+        if not truth_at:  # no ground truth (a real flight): the estimate is the best there is
+            ch["p_WB"], ch["v_WB"] = r["p_WB_est"], r["v_WB_est"]
+        log.append(r["t"], mode=r["mode"], **ch)
+    arrays = log.finalize()
+    rmse = None
+    if truth_at and len(arrays["t"]) > 1:
+        err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
+        err = err[np.isfinite(err)]
+        rmse = float(np.sqrt(np.mean(err**2))) if err.size else None
+    stats = pipe.stats
+    v = verdict or {}
+    outcome = v.get("outcome")
+    if bridge.phase is Phase.LINK_LOST and outcome is None:
+        outcome = "link_lost"
+    result: dict[str, Any] = {
+        "scenario": scenario.model_dump(mode="json"),
+        "seed": scenario.seed,
+        "preset": scenario.preset,
+        "outcome": outcome,
+        "success": v.get("success", False if outcome == "link_lost" else None),
+        "touchdown_error_m": v.get("touchdown_error_m"),
+        "touchdown_rel_speed_mps": v.get("touchdown_rel_speed_mps"),
+        "touchdown_rel_vertical_speed_mps": v.get("touchdown_rel_vertical_speed_mps"),
+        "touchdown_rel_horizontal_speed_mps": v.get("touchdown_rel_horizontal_speed_mps"),
+        "touchdown_tilt_deg": v.get("touchdown_tilt_deg"),
+        "contact_surface": v.get("contact_surface"),
+        "contact_reason": v.get("contact_reason"),
+        "time_first_detection_s": stats.t_first_detection,
+        "time_landing_start_s": stats.t_landing_start,
+        "time_to_land_s": v.get("time_to_land_s"),
+        "energy_flight_J": v.get("energy_flight_J"),
+        "energy_compute_J": None,
+        "frames_processed": stats.frames,
+        "detections": stats.measurements,
+        "rejected_measurements": stats.rejected_measurements,
+        "go_arounds": pipe.mission.go_arounds,
+        "final_mode": pipe.status.mode.value,
+        "platform_estimate_rmse_m": rmse,
+        "simulated_time_s": v.get("simulated_time_s"),
+        "wall_time_s": wall_s,
+        "block_time_s": {k: round(x, 6) for k, x in stats.block_time_s.items()},
+        "alight_version": alight.__version__,
+        "mode_history": [{"t": t, "mode": m.value, "reason": why} for t, m, why in pipe.mission.history],
+        "bridge": {
+            "mode": config.mode,
+            "autopilot": config.autopilot,
+            "setpoint": config.setpoint,
+            "arm": config.arm,
+            "final_phase": bridge.phase.value,
+            "lockstep": bridge.lockstep,
+            "accepted": bridge.stats.accepted,
+            "rejected": bridge.stats.rejected,
+            "parse_errors": bridge.stats.parse_errors,
+            "foreign_messages": bridge.stats.foreign,
+            "setpoints_sent": bridge.stats.setpoints_sent,
+            "hold_setpoints_sent": bridge.stats.holds,
+            "landing_targets_sent": bridge.stats.landing_targets_sent,
+            "events": bridge.events[-200:],
+        },
+        "sitl": None
+        if verdict is None
+        else {"flavour": v.get("sitl_flavour"), "events": v.get("sitl_events")},
+    }
+    events = {
+        "t_first_detection": stats.t_first_detection,
+        "t_landing_start": stats.t_landing_start,
+        "t_touchdown": v.get("time_to_land_s"),
+    }
+    return result, arrays, events

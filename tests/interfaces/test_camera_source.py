@@ -1,0 +1,106 @@
+"""Camera sources: the emulator's TCP stream round-trips frames, verdict and truth log; a corrupt stream is
+dropped without an exception; OpenCV reads a video file and refuses a missing one clearly."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from alight.errors import InputError
+from alight.interfaces.camera_source import (
+    FrameServer,
+    OpenCvCameraSource,
+    SocketCameraSource,
+    decode_frame,
+    encode_frame,
+    open_camera,
+)
+
+
+def _read(src: SocketCameraSource, timeout_s: float = 5.0) -> tuple[float, np.ndarray]:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        frame = src.read()
+        if frame is not None:
+            return frame
+        time.sleep(0.005)
+    raise AssertionError("no frame")
+
+
+def test_frame_codec_round_trip_and_malformed_payloads() -> None:
+    img = np.random.default_rng(0).integers(0, 256, size=(48, 64, 3), dtype=np.uint8)
+    data = encode_frame(7, 1.25, img)
+    seq, t, out = decode_frame(data[8:]) or (None, None, None)
+    assert seq == 7 and t == 1.25 and out is not None and np.array_equal(out, img)
+    assert decode_frame(data[8:-1]) is None  # short
+    assert decode_frame(struct.pack("<IdIII", 1, float("nan"), 2, 2, 1) + b"\0" * 4) is None
+    assert decode_frame(struct.pack("<IdIII", 1, 0.0, 2, 2, 2) + b"\0" * 8) is None  # 2 channels
+
+
+def test_tcp_stream_delivers_frames_in_order_with_verdict_and_truth() -> None:
+    server = FrameServer("127.0.0.1", 0)
+    server.hello = None
+    src = SocketCameraSource("127.0.0.1", server.port)
+    try:
+        deadline = time.monotonic() + 5.0
+        while not server.connected and time.monotonic() < deadline:
+            time.sleep(0.01)
+        imgs = [np.full((480, 752), i, dtype=np.uint8) for i in range(3)]
+        for i, img in enumerate(imgs):
+            assert server.send_frame(0.05 * i, img)
+        for i, img in enumerate(imgs):
+            t, got = _read(src)
+            assert t == pytest.approx(0.05 * i) and np.array_equal(got, img)
+        server.send_result({"outcome": "landed"})
+        server.send_truth_log({"t": np.arange(3.0), "p_WB": np.ones((3, 3))})
+        src.wait_closed(5.0)
+        assert src.result == {"outcome": "landed"}
+        assert src.truth_log is not None and np.array_equal(src.truth_log["p_WB"], np.ones((3, 3)))
+    finally:
+        src.close()
+        server.close()
+
+
+def test_corrupt_stream_is_dropped_not_raised() -> None:
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(1)
+    src = SocketCameraSource("127.0.0.1", listener.getsockname()[1])
+    conn, _ = listener.accept()
+    try:
+        conn.sendall(b"JUNK" + struct.pack("<I", 5) + b"hello" + bytes(range(200)))
+        time.sleep(0.1)
+        assert src.read() is None and src.dropped_messages >= 1 and not src.open
+        assert src.read() is None  # and stays quiet
+    finally:
+        conn.close()
+        listener.close()
+        src.close()
+
+
+def test_opencv_reads_a_video_file_and_refuses_a_missing_one(tmp_path: Path) -> None:
+    path = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (64, 48))
+    for i in range(5):
+        writer.write(np.full((48, 64, 3), 40 * i, dtype=np.uint8))
+    writer.release()
+    cam = OpenCvCameraSource(str(path))
+    try:
+        deadline = time.monotonic() + 5.0
+        frame = None
+        while frame is None and time.monotonic() < deadline:
+            frame = cam.read()
+            time.sleep(0.01)
+        assert frame is not None and frame[1].shape == (48, 64, 3) and cam.clock == "companion"
+    finally:
+        cam.close()
+    with pytest.raises(InputError, match="cannot open"):
+        open_camera(str(tmp_path / "missing.avi"))
+    with pytest.raises(InputError, match="tcp:HOST:PORT"):
+        open_camera("tcp:nohostport")

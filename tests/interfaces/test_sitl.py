@@ -1,0 +1,203 @@
+"""The emulated autopilot: mode numbers, its position controller in closed loop on the simulator, and the
+offboard rules over a real loopback MAVLink link (stream before OFFBOARD, COM_OF_LOSS_T failsafe)."""
+
+from __future__ import annotations
+
+import math
+import os
+import select
+import threading
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil  # noqa: E402
+from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
+from tests_interfaces_ports import free_port_pair  # noqa: E402
+
+from alight.airframe import DEFAULT_AIRFRAME  # noqa: E402
+from alight.interfaces.sitl import (  # noqa: E402
+    EmulatedAutopilot,
+    FlightMode,
+    SimWorld,
+    SitlConfig,
+    decode_mode,
+    encode_mode,
+    position_control,
+)
+from alight.scenario import Scenario  # noqa: E402
+from alight.sim.quadrotor import SL_P, SL_Q, SL_V  # noqa: E402
+from alight.types import quat_to_rotmat  # noqa: E402
+
+
+@pytest.mark.parametrize("flavour", ["px4", "ardupilot"])
+def test_mode_numbers_round_trip(flavour: str) -> None:
+    for mode in FlightMode:
+        decoded = decode_mode(flavour, encode_mode(flavour, mode))
+        expected = {FlightMode.TAKEOFF: FlightMode.OFFBOARD, FlightMode.LAND: FlightMode.PRECLAND}
+        assert decoded is (expected.get(mode, mode) if flavour == "ardupilot" else mode)
+    if flavour == "px4":  # px4_custom_mode.h: main in bits 16-23, sub in bits 24-31
+        assert encode_mode("px4", FlightMode.OFFBOARD) == 6 << 16
+        assert encode_mode("px4", FlightMode.PRECLAND) == (4 << 16) | (9 << 24)
+    else:
+        assert (
+            encode_mode("ardupilot", FlightMode.OFFBOARD) == 4
+            and encode_mode("ardupilot", FlightMode.LAND) == 9
+        )
+
+
+def test_position_controller_takes_off_and_holds_a_point() -> None:
+    world = SimWorld(Scenario.model_validate({"preset": "groundtruth", "duration_s": 10.0, "seed": 2}))
+    goal = np.array([1.0, -1.0, 3.0])
+    for k in range(8 * 200):
+        if k % 2 == 0:
+            x = world.x
+            thrust, w = position_control(
+                x[SL_P], x[SL_V], quat_to_rotmat(x[SL_Q]), p_ref=goal, v_ref=None, a_ref=None, yaw_ref=0.3,
+                airframe=DEFAULT_AIRFRAME,
+            )  # fmt: skip
+            world.set_command(thrust, w, True)
+        world.tick()
+    x = world.x
+    assert np.linalg.norm(x[SL_P] - goal) < 0.1 and np.linalg.norm(x[SL_V]) < 0.1
+    R = quat_to_rotmat(x[SL_Q])
+    assert math.atan2(R[1, 0], R[0, 0]) == pytest.approx(0.3, abs=0.02)
+    assert world.contact is None
+
+
+class Client:
+    """A scripted companion on the loopback link."""
+
+    def __init__(self, port: int) -> None:
+        self.conn = mavutil.mavlink_connection(
+            f"udpout:127.0.0.1:{port}", source_system=1, source_component=191, dialect="common"
+        )
+        self.acks: list[tuple[int, int]] = []
+        self.heartbeats: list[Any] = []
+        self.texts: list[str] = []
+
+    def drain(self) -> None:
+        while True:
+            msg = self.conn.recv_match(blocking=False)
+            if msg is None:  # a datagram without a whole message; stop only when the socket is empty
+                if select.select([self.conn.port], [], [], 0)[0]:
+                    continue
+                return
+            kind = msg.get_type()
+            if kind == "COMMAND_ACK":
+                self.acks.append((msg.command, msg.result))
+            elif kind == "HEARTBEAT":
+                self.heartbeats.append(msg)
+            elif kind == "STATUSTEXT":
+                self.texts.append(msg.text)
+
+    def command(self, command: int, *params: float) -> int:
+        """Send a COMMAND_LONG and wait for its ACK's result."""
+        n = len(self.acks)
+        p = list(params) + [0.0] * (7 - len(params))
+        self.conn.mav.command_long_send(1, 1, command, 0, *p)
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline:
+            self.drain()
+            for c, r in self.acks[n:]:
+                if c == command:
+                    return r
+            time.sleep(0.005)
+        raise AssertionError(f"no COMMAND_ACK for {command}")
+
+    def hold_setpoint(self) -> None:
+        self.conn.mav.set_position_target_local_ned_send(
+            0, 1, 1, mavlink.MAV_FRAME_LOCAL_NED, 2552, 0.0, 0.0, -2.0, 0, 0, 0, 0, 0, 0, math.pi / 2, 0
+        )
+
+
+def test_offboard_rules_and_loss_failsafe_within_com_of_loss_t() -> None:
+    port = free_port_pair()
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 7.0, "seed": 0})
+    ap = EmulatedAutopilot(scenario, SitlConfig(port=port, lockstep=False, speed=1.0))
+    result: dict[str, Any] = {}
+    thread = threading.Thread(target=lambda: result.update(ap.run()), daemon=True)
+    thread.start()
+    client = Client(port)
+    try:
+        client.conn.mav.heartbeat_send(18, 8, 0, 0, 0)
+        time.sleep(0.2)
+        # OFFBOARD is refused without a setpoint stream
+        assert client.command(176, 1, 6, 0) == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.3:
+            client.hold_setpoint()
+            client.drain()
+            time.sleep(0.02)
+        assert client.command(176, 1, 6, 0) == mavlink.MAV_RESULT_ACCEPTED
+        assert client.command(400, 1) == mavlink.MAV_RESULT_ACCEPTED
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 2.5:  # fly up to the setpoint, then stop the stream
+            client.hold_setpoint()
+            client.drain()
+            if time.monotonic() - t0 > 0.5:
+                client.conn.mav.heartbeat_send(18, 8, 0, 0, 0)
+            time.sleep(0.02)
+        while thread.is_alive():  # the simulated clock may lag the wall clock on a loaded machine
+            client.drain()
+            time.sleep(0.01)
+    finally:
+        thread.join(timeout=30)
+        ap.close()
+        client.conn.close()
+    assert result["outcome"] == "timeout"  # nobody landed it; it did not crash
+    failsafe = [e for e in ap.events if e["event"] == "failsafe"]
+    assert len(failsafe) == 1
+    gap = failsafe[0]["t"] - failsafe[0]["last_setpoint_t"]
+    assert 1.0 - 1e-6 <= gap <= 1.0 + 0.0101  # COM_OF_LOSS_T, checked every 10 ms (times rounded to 1 us)
+    modes = [e for e in ap.events if e["event"] == "mode"]
+    assert modes[-1]["mode"] == "hold" and modes[-1]["t"] == failsafe[0]["t"]
+    assert any("Offboard lost" in t for t in client.texts), (
+        client.texts,
+        len(client.heartbeats),
+        client.acks,
+    )
+    # It was flying when the stream stopped, and the failsafe hold kept it in the air, near where it was.
+    log = ap.truth_arrays()
+    k = int(np.searchsorted(log["t"], failsafe[0]["t"]))
+    assert log["p_WB"][k, 2] > 1.0
+    assert np.linalg.norm(log["p_WB"][-1] - log["p_WB"][k]) < 0.5
+
+
+def test_ardupilot_guided_stops_after_guid_timeout_and_stays_guided() -> None:
+    port = free_port_pair()
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 7.0, "seed": 0})
+    ap = EmulatedAutopilot(scenario, SitlConfig(port=port, lockstep=False, flavour="ardupilot", speed=1.0))
+    thread = threading.Thread(target=ap.run, daemon=True)
+    thread.start()
+    client = Client(port)
+    try:
+        client.conn.mav.heartbeat_send(18, 8, 0, 0, 0)
+        time.sleep(0.2)
+        assert client.command(176, 1, 4) == mavlink.MAV_RESULT_ACCEPTED  # GUIDED needs no stream first
+        assert client.command(400, 1) == mavlink.MAV_RESULT_ACCEPTED
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 2.0:
+            client.hold_setpoint()
+            client.drain()
+            time.sleep(0.02)
+        while thread.is_alive():
+            client.drain()
+            time.sleep(0.01)
+    finally:
+        thread.join(timeout=30)
+        ap.close()
+        client.conn.close()
+    # (a stop before the first setpoint may or may not be seen, depending on when the stream started)
+    stops = [e for e in ap.events if e["event"] == "guided_timeout" and e["last_setpoint_t"] is not None]
+    assert len(stops) == 1
+    gap = stops[0]["t"] - stops[0]["last_setpoint_t"]
+    assert 3.0 - 1e-6 <= gap <= 3.0 + 0.0101  # GUID_TIMEOUT, 3 s by default (event times are rounded to 1 us)
+    assert not [e for e in ap.events if e["event"] == "failsafe"] and ap.mode is FlightMode.OFFBOARD
+    assert client.heartbeats[-1].custom_mode == 4  # still GUIDED
+    log = ap.truth_arrays()
+    k = int(np.searchsorted(log["t"], stops[0]["t"]))
+    assert log["p_WB"][k, 2] > 1.0 and np.linalg.norm(log["p_WB"][-1] - log["p_WB"][k]) < 0.5
