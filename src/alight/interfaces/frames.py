@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from alight.types import FloatArray
 
@@ -119,4 +120,19 @@ def euler_ned_frd_to_q_WB(roll: float, pitch: float, yaw: float) -> FloatArray:
 def cov_enu_to_ned(P: FloatArray) -> FloatArray:
     """A 3x3 world covariance, ENU <-> NED: ``M P M^T``."""
     out: FloatArray = M_ENU_NED @ np.asarray(P, dtype=np.float64) @ M_ENU_NED.T
+    return out
+
+
+def mavlink_to_q_WB_many(q_wxyz_ned_frd: FloatArray) -> FloatArray:
+    """Many PX4/MAVLink attitudes at once (a recorded flight's ``vehicle_attitude``): (N, 4) ``(w, x, y, z)``
+    NED/FRD -> (N, 4) ``q_WB`` ENU/FLU ``(x, y, z, w)``. Unlike :func:`mavlink_to_q_WB`, a row that is not a
+    unit quaternion (zeros, NaN, a norm off by more than 10 %) does not raise: it comes out as NaN, so a log
+    reader can drop it and count it."""
+    q = np.atleast_2d(np.asarray(q_wxyz_ned_frd, dtype=np.float64))
+    out = np.full(q.shape, np.nan)
+    norm = np.linalg.norm(q, axis=1)
+    ok = np.isfinite(norm) & (np.abs(norm - 1.0) < 0.1)
+    if ok.any():
+        R_NED_FRD = Rotation.from_quat(q[ok][:, [1, 2, 3, 0]]).as_matrix()
+        out[ok] = Rotation.from_matrix(M_ENU_NED @ R_NED_FRD @ M_FLU_FRD).as_quat()
     return out

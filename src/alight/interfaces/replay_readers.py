@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from alight.errors import ReplayError
-from alight.interfaces.replay_frames import frd_to_flu, ned_to_enu, q_ned_frd_wxyz_to_q_WB
+from alight.interfaces.frames import frd_to_flu, mavlink_to_q_WB_many, ned_to_enu
 
 FloatArray = NDArray[np.float64]
 
@@ -401,7 +401,7 @@ def _ulog_pose(
     if data_q is None:
         return None
     tq = _times(data_q, t0)
-    q = q_ned_frd_wxyz_to_q_WB(_fields(data_q, ("q[0]", "q[1]", "q[2]", "q[3]"), topic_q))
+    q = mavlink_to_q_WB_many(_fields(data_q, ("q[0]", "q[1]", "q[2]", "q[3]"), topic_q))
     ok = np.isfinite(q).all(axis=1)
     order = np.argsort(tq[ok], kind="stable")
     tq, q = tq[ok][order], q[ok][order]

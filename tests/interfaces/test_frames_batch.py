@@ -1,4 +1,4 @@
-"""NED/FRD -> ENU/FLU at the replay's boundary (interfaces/replay_frames.py)."""
+"""NED/FRD -> ENU/FLU at the replay's boundary (interfaces/frames.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from alight.interfaces.replay_frames import frd_to_flu, ned_to_enu, q_ned_frd_wxyz_to_q_WB
+from alight.interfaces.frames import frd_to_flu, mavlink_to_q_WB_many, ned_to_enu
 from alight.types import quat_to_rotmat
 
 
@@ -32,7 +32,7 @@ def test_accelerometer_at_rest_points_up_in_flu() -> None:
 
 def test_heading_north_is_yaw_pi_over_2_in_enu() -> None:
     for yaw_ned in (0.0, 0.7, -2.0, math.pi / 2):
-        R_WB = quat_to_rotmat(q_ned_frd_wxyz_to_q_WB(_px4_q(0.0, 0.0, yaw_ned))[0])
+        R_WB = quat_to_rotmat(mavlink_to_q_WB_many(_px4_q(0.0, 0.0, yaw_ned))[0])
         forward_W = R_WB @ [1.0, 0.0, 0.0]
         # heading measured from north, clockwise; ENU yaw from east, anticlockwise
         expected = [math.sin(yaw_ned), math.cos(yaw_ned), 0.0]
@@ -42,14 +42,14 @@ def test_heading_north_is_yaw_pi_over_2_in_enu() -> None:
 
 def test_roll_right_tilts_the_left_axis_up() -> None:
     # rolling right wing down (positive FRD roll) lifts the left side: FLU y gets a +z component
-    R_WB = quat_to_rotmat(q_ned_frd_wxyz_to_q_WB(_px4_q(0.3, 0.0, 0.0))[0])
+    R_WB = quat_to_rotmat(mavlink_to_q_WB_many(_px4_q(0.3, 0.0, 0.0))[0])
     y_W = R_WB @ [0.0, 1.0, 0.0]
     assert math.isclose(y_W[2], math.sin(0.3), abs_tol=1e-12)
     # and a pitch up (positive FRD pitch) lifts the nose: FLU x gets +z
-    R_WB = quat_to_rotmat(q_ned_frd_wxyz_to_q_WB(_px4_q(0.0, 0.2, 1.0))[0])
+    R_WB = quat_to_rotmat(mavlink_to_q_WB_many(_px4_q(0.0, 0.2, 1.0))[0])
     assert math.isclose((R_WB @ [1.0, 0.0, 0.0])[2], math.sin(0.2), abs_tol=1e-12)
 
 
 def test_non_unit_quaternions_become_nan() -> None:
-    q = q_ned_frd_wxyz_to_q_WB(np.array([[0.0, 0.0, 0.0, 0.0], [np.nan, 0, 0, 1], [1.0, 0, 0, 0]]))
+    q = mavlink_to_q_WB_many(np.array([[0.0, 0.0, 0.0, 0.0], [np.nan, 0, 0, 1], [1.0, 0, 0, 0]]))
     assert np.isnan(q[0]).all() and np.isnan(q[1]).all() and np.isfinite(q[2]).all()
