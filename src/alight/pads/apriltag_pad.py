@@ -117,17 +117,17 @@ class AprilTagPad:
         edge between pixels gives the proportional grey and the marker corners stay where P says."""
         n = texture_side_px(self.size_m, px_per_m)
         s = n / self.size_m
-        img = np.full((n, n), 255.0)
+        img = np.full((n, n), 255.0, dtype=np.float64)
         dictionary = cv2.aruco.getPredefinedDictionary(APRILTAG_DICTIONARY)
         for mid in self.marker_ids:
             cx, cy, a = self.marker_center_and_size_P(mid)
-            cells = cv2.aruco.generateImageMarker(dictionary, mid, _MARKER_CELLS, borderBits=1)
-            cells = cells.astype(np.float64) - 255.0
+            marker = cv2.aruco.generateImageMarker(dictionary, mid, _MARKER_CELLS, borderBits=1)
+            cells = marker.astype(np.float64) - 255.0
             # texture column of the marker's left (+y) edge and row of its top (+x) edge, in pixel units
             # from the texture's edge (pixel i spans [i, i+1))
             u0 = s * (self.size_m / 2 - (cy + a / 2))
             v0 = s * (self.size_m / 2 - (cx + a / 2))
-            steps = np.arange(_MARKER_CELLS + 1) * (s * a / _MARKER_CELLS)
+            steps = np.arange(_MARKER_CELLS + 1, dtype=np.float64) * (s * a / _MARKER_CELLS)
             Wu = box_overlap_weights(n, u0 + steps)
             Wv = box_overlap_weights(n, v0 + steps)
             img += Wv @ cells @ Wu.T

@@ -176,11 +176,11 @@ class SduPad:
         land where P says to a small fraction of a pixel."""
         n = texture_side_px(self.size_m, px_per_m)
         s = n / self.size_m
-        img = np.full((n, n), 255.0)
+        img = np.full((n, n), 255.0, dtype=np.float64)
         # the n-fold disc's bounding box (pixel i spans [i, i+1) from the texture edge), one pixel wider
         lo = max(0, int(math.floor(s * (self.size_m / 2 - self.nfold_radius_m))) - 1)
         hi = min(n, int(math.ceil(s * (self.size_m / 2 + self.nfold_radius_m))) + 1)
-        idx = (np.arange(lo, hi) + 0.5) / s
+        idx = (np.arange(lo, hi, dtype=np.float64) + 0.5) / s
         x = (self.size_m / 2 - idx)[:, None]  # row v -> x
         y = (self.size_m / 2 - idx)[None, :]  # column u -> y
         img[lo:hi, lo:hi] -= 255.0 * self._nfold_coverage(x, y, s)
@@ -188,11 +188,11 @@ class SduPad:
         cells_n = self.aruco_cells
         for mid in self.aruco_ids:
             cx, cy, a = self.marker_center_and_size_P(mid)
-            cells = cv2.aruco.generateImageMarker(dictionary, mid, cells_n, borderBits=1)
-            cells = cells.astype(np.float64) - 255.0
+            marker = cv2.aruco.generateImageMarker(dictionary, mid, cells_n, borderBits=1)
+            cells = marker.astype(np.float64) - 255.0
             u0 = s * (self.size_m / 2 - (cy + a / 2))
             v0 = s * (self.size_m / 2 - (cx + a / 2))
-            steps = np.arange(cells_n + 1) * (s * a / cells_n)
+            steps = np.arange(cells_n + 1, dtype=np.float64) * (s * a / cells_n)
             img += box_overlap_weights(n, v0 + steps) @ cells @ box_overlap_weights(n, u0 + steps).T
         return np.round(np.clip(img, 0, 255)).astype(np.uint8)
 
