@@ -179,7 +179,8 @@ class PinholeCamera:
         lens model has no inverse."""
         xy = self.pixels_to_normalized(pixels)
         r = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
-        return r / np.linalg.norm(r, axis=1, keepdims=True)
+        rays: FloatArray = r / np.linalg.norm(r, axis=1, keepdims=True)  # norm(axis=...) is typed Any
+        return rays
 
     def fov_rad(self) -> tuple[float, float]:
         """Full horizontal and vertical field of view (rad): the angle between the rays through the

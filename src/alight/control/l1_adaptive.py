@@ -90,6 +90,7 @@ reset the adaptive state.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -350,7 +351,7 @@ _MESSAGE_SIG = (types.float64, _RO, _RO, _RO, _RO, _RW, _RW, _RW)
 """``l1_kernel``'s argument types when fed ``EgoState`` / ``Reference`` arrays (read-only C float64)."""
 
 
-def _message_entry_point():  # type: ignore[no-untyped-def]
+def _message_entry_point() -> Callable[..., bool]:
     """The compiled kernel for ``_MESSAGE_SIG``: calling it skips the dispatcher's per-argument type
     resolution (as ``high_level._message_entry_point``)."""
     try:

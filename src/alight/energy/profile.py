@@ -56,7 +56,7 @@ from alight.pads.sdu_pad import SduPad
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.textures import make_ground_texture
-from alight.types import FloatArray, rot_z
+from alight.types import FloatArray, Observation, rot_z
 
 _ALTITUDES = {"far": (6.0, 12.0), "near": (2.0, 6.0), "partial": (1.5, 4.0), "absent": (4.0, 12.0)}
 _DECK_Z = 0.5
@@ -110,8 +110,8 @@ def _tilt(rng: np.random.Generator, max_tilt: float) -> FloatArray:
         rng.uniform(-math.pi, math.pi),
     )
     cr, sr, cp, sp = math.cos(r), math.sin(r), math.cos(p), math.sin(p)
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]], dtype=np.float64)
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]], dtype=np.float64)
     return rot_z(y) @ Ry @ Rx
 
 
@@ -248,12 +248,12 @@ def run_profile(
                 d.detect(f.image, 0.0)
         order = list(pairs)
         for n, f in enumerate(frames):
-            rng.shuffle(order)  # type: ignore[arg-type]
+            rng.shuffle(order)
             a = acc[f.kind]
             for key in order:
                 d = dets[key]
                 times = []
-                obs: list = []
+                obs: list[Observation] = []
                 for _ in range(cfg.repeats):
                     obs = d.detect(f.image, float(n))
                     times.append(d.last_cpu_s)

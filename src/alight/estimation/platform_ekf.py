@@ -622,7 +622,7 @@ class PlatformEkf:
         if not (math.isfinite(t) and math.isfinite(float(p.sum())) and math.isfinite(float(cov.sum()))):
             raise EstimationError(f"PlatformEkf.update: non-finite measurement at t={t}")
         use_yaw = self.config.use_yaw and yaw is not None
-        if use_yaw:
+        if use_yaw and yaw is not None:  # (use_yaw implies it; said again for the type checker)
             yaw_var = measurement.yaw_var if measurement.yaw_var is not None else self.config.yaw_std**2
             if not (math.isfinite(yaw) and math.isfinite(yaw_var) and yaw_var > 0.0):
                 raise EstimationError(f"PlatformEkf.update: yaw {yaw} / yaw_var {yaw_var} invalid at t={t}")

@@ -23,7 +23,7 @@ positive definite falls back to the symmetric square root with negative eigenval
 from __future__ import annotations
 
 import math
-from typing import Protocol, runtime_checkable
+from typing import Protocol, cast, runtime_checkable
 
 import numpy as np
 
@@ -57,10 +57,12 @@ def matrix_sqrt(P: FloatArray) -> FloatArray:
     eigenvalues clipped when ``P`` is not numerically positive definite (then ``L L^T`` is the nearest
     positive semi-definite matrix)."""
     try:
-        return np.linalg.cholesky(P)
+        # float64 for a float64 P; numpy's stubs type cholesky's result floating[Any]
+        return cast(FloatArray, np.linalg.cholesky(P))
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(0.5 * (P + P.T))
-        return V * np.sqrt(np.clip(w, 0.0, None))
+        L: FloatArray = V * np.sqrt(np.clip(w, 0.0, None))  # typed Any (np.sqrt's stub drops the dtype)
+        return L
 
 
 class _CachedWeights:

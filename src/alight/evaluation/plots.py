@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -118,7 +119,7 @@ def _event_times(
     events: Mapping[str, float | None] | None, t: np.ndarray
 ) -> list[tuple[str, str, str, float]]:
     """The events that are given and fall inside the logged time span, as (key, symbol, label, time)."""
-    out = []
+    out: list[tuple[str, str, str, float]] = []
     if t.shape[0] == 0:
         return out
     for key, sym, label in EVENTS:
@@ -337,7 +338,7 @@ def plot_time_series(
                 ax.tick_params(labelbottom=False)
         axes[-1].set_xlabel("t (s)")
 
-    handles = [
+    handles: list[Artist] = [
         _line(QUAD_COLOR, "-", "quadrotor (truth)"),
         _line(QUAD_COLOR, "--", "quadrotor (est.)"),
         _line(PLATFORM_COLOR, "-", "platform (truth)"),

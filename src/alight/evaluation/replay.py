@@ -32,9 +32,11 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 from PIL import Image
@@ -113,12 +115,13 @@ class FrameRecorder:
         scale = min(1.0, self.max_width_px / w)
         if scale < 1.0:
             size = (max(1, round(w * scale)), max(1, round(h * scale)))
-            img = cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+            # uint8 like its input, so np.asarray converts nothing: OpenCV's stubs type it MatLike
+            img = np.asarray(cv2.resize(img, size, interpolation=cv2.INTER_AREA), dtype=np.uint8)
             observations = [_scaled(o, size[0] / w, size[1] / h) for o in observations]
         else:
             img = img.copy()
         if img.ndim == 3:  # the camera's images are OpenCV's BGR; the replay's frames are RGB
-            img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+            img = np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2RGB), dtype=np.uint8)
         self.frames.append((t, img, list(observations)))
 
 
@@ -160,16 +163,17 @@ def _layout(with_camera: bool) -> _Layout:
     )
 
 
-def _add_axes(fig: Figure, box: tuple[int, int, int, int], lay: _Layout):  # type: ignore[no-untyped-def]
+def _add_axes(fig: Figure, box: tuple[int, int, int, int], lay: _Layout) -> Axes:
     x, y, w, h = box
     return fig.add_axes((x / lay.width, 1.0 - (y + h) / lay.height, w / lay.width, h / lay.height))
 
 
 def _finite_rows(a: np.ndarray) -> np.ndarray:
-    return np.isfinite(a).all(axis=1)
+    rows: np.ndarray = np.isfinite(a).all(axis=1)  # .all(axis=...) is typed Any
+    return rows
 
 
-def _to_pixels(ax, xy: np.ndarray, height: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+def _to_pixels(ax: Axes, xy: np.ndarray, height: int) -> np.ndarray:
     """Data coordinates (N, 2) -> image pixels (N, 2), y down, as float (NaN stays NaN)."""
     out = np.full(xy.shape, np.nan)
     ok = _finite_rows(xy)
@@ -332,7 +336,8 @@ def _palette(background: NDArray[np.uint8]) -> tuple[np.ndarray, NDArray[np.uint
     bins = (np.arange(32) * 8 + 4).astype(np.float64)
     r, g, b = np.meshgrid(bins, bins, bins, indexing="ij")
     cube = np.stack([r.ravel(), g.ravel(), b.ravel()], axis=1)
-    lut = cKDTree(pal).query(cube)[1].astype(np.uint8)
+    # the nearest indices (an array for an array of points; the stubs also allow a scalar): no conversion
+    lut = np.asarray(cKDTree(pal).query(cube)[1]).astype(np.uint8)
     return pal.astype(np.uint8), lut
 
 
@@ -432,16 +437,21 @@ def _draw_camera(img: np.ndarray, frame: Frame | None) -> None:
     if im.dtype != np.uint8 or im.ndim not in (2, 3):
         raise ValueError(f"camera frames must be uint8 (H, W) or (H, W, 3), got {im.dtype} {im.shape}")
     if im.ndim == 2:
-        im = cv2.cvtColor(im, cv2.COLOR_GRAY2RGB)
+        # uint8 like its input, so np.asarray converts nothing: OpenCV's stubs type it MatLike
+        im = np.asarray(cv2.cvtColor(im, cv2.COLOR_GRAY2RGB), dtype=np.uint8)
     scale = min(w / im.shape[1], h / im.shape[0])
     size = (max(1, round(im.shape[1] * scale)), max(1, round(im.shape[0] * scale)))
     sxy = np.array([size[0] / im.shape[1], size[1] / im.shape[0]])
     if size != (im.shape[1], im.shape[0]):
-        im = cv2.resize(im, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+        im = np.asarray(
+            cv2.resize(im, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR),
+            dtype=np.uint8,
+        )
     # A light blur and 16 grey levels: sensor noise and fine texture are what make a GIF frame of a
     # camera image large (half the bytes of 32 raw levels), and neither matters in a replay.
-    im = cv2.GaussianBlur(im, (3, 3), 0)
-    im = (im & 0xF0) | 0x08
+    im = np.asarray(cv2.GaussianBlur(im, (3, 3), 0), dtype=np.uint8)
+    # uint8 (NEP 50: a Python int operand takes the array's dtype); numpy's stubs say signedinteger
+    im = cast(NDArray[np.uint8], (im & 0xF0) | 0x08)
     ox, oy = (w - size[0]) // 2, (h - size[1]) // 2
     img[oy : oy + size[1], ox : ox + size[0]] = im
     labels = []

@@ -133,12 +133,12 @@ class FalangaTag:
         ``n = round(size_m * px_per_m)``. Edges are anti-aliased with a one-pixel linear ramp of the exact
         signed distance to each shape, so the 50 % grey level sits on the true edge."""
         n = texture_side_px(self.size_m, px_per_m)
-        x, y, s = texture_grid_P(self.size_m, n)
+        x64, y64, s = texture_grid_P(self.size_m, n)
         # the tag is symmetric about both axes and so is the pixel grid: compute the (+x, +y) quadrant
         # (rows and columns 0 .. ceil(n/2)) and mirror it
         m = (n + 1) // 2
-        x = x[:m, :m].astype(np.float32)
-        y = y[:m, :m].astype(np.float32)
+        x = x64[:m, :m].astype(np.float32)
+        y = y64[:m, :m].astype(np.float32)
         r = np.hypot(x, y)
         mid = self.ring_outer_radius_m - self.ring_width_m / 2
         sd_ring = np.abs(r - np.float32(mid)) - np.float32(self.ring_width_m / 2)

@@ -104,7 +104,8 @@ class RedTarget:
         dirs = np.array([[0.0, 1.0], [-1.0, 0.0], [0.0, -1.0], [1.0, 0.0]])
         k = side.astype(int)
         xy = starts[k] + f[:, None] * dirs[k]
-        return np.c_[xy, np.zeros(n)]
+        out: FloatArray = np.c_[xy, np.zeros(n)]  # np.c_ is typed Any
+        return out
 
     # ---------------------------------------------------------------------------------------- texture
 

@@ -64,7 +64,8 @@ def ground_intersection(d_W: FloatArray, H: float, min_cos: float = 0.0) -> Floa
     n = math.sqrt(float(d_W @ d_W))
     if not (n > 0 and H > 0 and math.isfinite(H)) or not (-d_W[2] > min_cos * n):
         return None
-    return -H * d_W / d_W[2]
+    p: FloatArray = -H * d_W / d_W[2]  # an ndarray element is typed Any
+    return p
 
 
 def flat_earth_jacobians(d_W: FloatArray, H: float) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -153,7 +154,7 @@ class FlatEarthGeolocator:
             return None
         h = self.pixel_step
         q = np.array([px, px + (h, 0.0), px - (h, 0.0), px + (0.0, h), px - (0.0, h)])
-        rays = np.asarray(self.camera.unproject(q), dtype=np.float64)  # type: ignore[attr-defined]
+        rays = np.asarray(self.camera.unproject(q), dtype=np.float64)
         if rays.shape != (5, 3) or not np.isfinite(rays[0]).all():
             return None
         d = R_WC @ rays[0]

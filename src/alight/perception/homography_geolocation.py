@@ -379,7 +379,8 @@ def ray_plane_point(p_WC: FloatArray, ray_W: FloatArray, plane_z_W: float) -> Fl
     None when the ray does not reach it. The reference the homography method is compared with."""
     if not ray_W[2] * (plane_z_W - p_WC[2]) > 0.0:
         return None
-    return p_WC + (plane_z_W - p_WC[2]) / ray_W[2] * ray_W
+    p: FloatArray = p_WC + (plane_z_W - p_WC[2]) / ray_W[2] * ray_W  # an ndarray element is typed Any
+    return p
 
 
 # --------------------------------------------------------------------------------------------------

@@ -80,6 +80,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numba
@@ -450,7 +451,10 @@ def nfold_response_filter2d(gray: NDArray[np.generic], n: int, k: int) -> tuple[
         raise ValueError(f"gray must be a 2-D image, got shape {g.shape}")
     parts = _kernel_parts(n, k)
     f = g.astype(np.float32, copy=False)
-    return cv2.filter2D(f, cv2.CV_32F, parts.re), cv2.filter2D(f, cv2.CV_32F, parts.im)
+    # float32 (CV_32F); OpenCV's stubs type the results MatLike, without the dtype
+    re: NDArray[Any] = cv2.filter2D(f, cv2.CV_32F, parts.re)
+    im: NDArray[Any] = cv2.filter2D(f, cv2.CV_32F, parts.im)
+    return re, im
 
 
 def nfold_detect_filter2d(image: object, n: int, k: int, oriented: bool = False) -> NFoldResult | None:
@@ -577,7 +581,12 @@ class NFoldDetector:
         yaw = res.theta if self.config.oriented else None
         return [
             Observation(
-                t=t, kind="nfold", quality=res.quality, pixels=[[res.x, res.y]], points_P=pts, yaw_CP=yaw
+                t=t,
+                kind="nfold",
+                quality=res.quality,
+                pixels=np.array([[res.x, res.y]]),
+                points_P=pts,
+                yaw_CP=yaw,
             )
         ]
 
@@ -711,7 +720,8 @@ def _separable_magnitude(img: F32Array, parts: _KernelParts, exact: bool) -> F32
             re += r
         else:
             im += r
-    return cv2.magnitude(re, im)  # type: ignore[no-any-return]
+    mag: NDArray[Any] = cv2.magnitude(re, im)  # float32; MatLike in OpenCV's stubs
+    return mag
 
 
 def _top_peaks(mag: F32Array, count: int, nms_radius: int, floor: float) -> list[tuple[int, int]]:

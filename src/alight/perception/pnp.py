@@ -71,7 +71,8 @@ def project_with_jacobian(
         K,
         dist if dist.size else None,
     )
-    return px.reshape(-1, 2), jac[:, :6].copy()
+    # float64 like the inputs (so no conversion here); OpenCV's stubs type the results MatLike, no dtype
+    return np.asarray(px, dtype=np.float64).reshape(-1, 2), np.asarray(jac, dtype=np.float64)[:, :6].copy()
 
 
 def solve_pnp(
@@ -131,7 +132,9 @@ def solve_pnp(
         if err > max(4.0 * e_best, e_best + 1.0):
             continue
         try:
-            rv, tv = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
+            rv_lm, tv_lm = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
+            # the refined float64 rv, tv (no conversion); OpenCV's stubs type them MatLike, without the dtype
+            rv, tv = np.asarray(rv_lm, dtype=np.float64), np.asarray(tv_lm, dtype=np.float64)
         except cv2.error:
             pass
         proj, _ = project_with_jacobian(pts, rv, tv, K, dist)

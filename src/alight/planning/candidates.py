@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
 from alight.errors import ConfigError
@@ -54,7 +55,7 @@ def sample_end_times(
 
 
 @njit(cache=True)
-def _plan_kernel(  # pragma: no cover
+def _plan_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     p0, v0, a0, t, end_times, pf, vf, af, mode, limits, check_floor, floor_z, prev, prev_t_end,
     coef, costs, codes, floor_ok, best,
 ):  # fmt: skip
@@ -198,9 +199,9 @@ class PlanResult:
     """Candidates that passed the input test (FEASIBLE only) and the floor test."""
     costs: FloatArray
     """J of every candidate (m^2/s^6), (n,)."""
-    codes: FloatArray
+    codes: NDArray[np.int64]
     """:class:`InputFeasibility` code of every candidate, (n,) int64."""
-    floor_ok: FloatArray
+    floor_ok: NDArray[np.bool_]
     """Floor test of every candidate, (n,) bool."""
     best_index: int
     """Index of this cycle's min-cost feasible candidate, -1 if none."""

@@ -56,6 +56,7 @@ import functools
 import math
 import weakref
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numba
@@ -290,7 +291,7 @@ def _deck_pyramid(*args: object) -> tuple[_Level, ...]:
         hash(args)
     except TypeError:
         return _build_deck_pyramid(*args)  # type: ignore[arg-type]
-    return _cached_deck_pyramid(*args)  # type: ignore[arg-type]
+    return _cached_deck_pyramid(*args)
 
 
 @functools.lru_cache(maxsize=8)
@@ -321,7 +322,8 @@ def _build_deck_pyramid(
         color=color,
     )
     levels = []
-    img = cv2.cvtColor(deck.image, cv2.COLOR_BGR2BGRA) if color else deck.image
+    # uint8 throughout: OpenCV's stubs return MatLike, without the (preserved) dtype
+    img: NDArray[Any] = cv2.cvtColor(deck.image, cv2.COLOR_BGR2BGRA) if color else deck.image
     L, W = deck.length_m, deck.width_m
     while True:
         rows, cols = img.shape[:2]
@@ -343,7 +345,7 @@ def _ground_pyramid(
     tile's last texel read the first), and 6 constant rows: sky (n+1, n+2), haze (n+3, n+4) and black
     (n+5, n+6). Returns the levels and the haze intensity (per channel in colour). ``color``: BGRA
     levels (a grey tile replicated), else grey (a BGR tile as its luma); ``sky`` a DN or a BGR triple."""
-    tile = ground.image
+    tile: NDArray[Any] = ground.image  # uint8; OpenCV's stubs return MatLike, without the dtype
     if color and tile.ndim == 2:
         tile = cv2.cvtColor(tile, cv2.COLOR_GRAY2BGRA)
     elif color:
@@ -476,7 +478,7 @@ def _camera_rays(camera: CameraModel, pyrup: bool) -> tuple:  # type: ignore[typ
         if key is not None:
             out = _RAY_CACHE[(key, pyrup)]
             _RAY_CACHE.move_to_end((key, pyrup))
-            return out  # type: ignore[no-any-return]
+            return out
         return _RAY_CACHE_BY_ID[camera][pyrup]  # type: ignore[no-any-return]
     except (KeyError, TypeError):
         pass
@@ -627,14 +629,16 @@ class Renderer:
             lo = float(cos4.min())
             gain = 1.0 - opt.vignetting * (1.0 - cos4) / max(1.0 - lo, 1e-9)
             # as uint8 (gain x 255): a uint8 x uint8 multiply is several times faster than one by float32
-            self._vignette = np.clip(np.rint(255.0 * gain), 0, 255).astype(np.uint8)
+            vignette: NDArray[Any] = np.clip(np.rint(255.0 * gain), 0, 255).astype(np.uint8)
             if self._color:
-                self._vignette = cv2.cvtColor(self._vignette, cv2.COLOR_GRAY2BGR)
+                vignette = cv2.cvtColor(vignette, cv2.COLOR_GRAY2BGR)  # still uint8 (MatLike in the stubs)
+            self._vignette = vignette
         # pixels without a ray are black after every effect (blur, pyrUp and noise would spill into them)
         self._valid: NDArray[np.uint8] | None = None
         if not valid.all():
             v8 = np.where(valid, np.uint8(255), np.uint8(0))
-            self._valid = cv2.cvtColor(v8, cv2.COLOR_GRAY2BGR) if self._color else v8
+            valid8: NDArray[Any] = cv2.cvtColor(v8, cv2.COLOR_GRAY2BGR) if self._color else v8
+            self._valid = valid8
         # sensor noise: one bank of Gaussian samples twice the image size, from which each frame takes a
         # window at a random offset (drawing 360 k normals per frame would cost 4 ms). Stored as its
         # positive and negative parts in uint8, so adding it is two saturating uint8 operations, which
@@ -868,8 +872,9 @@ class Renderer:
             cv2.cvtColor(b.tmp4[: nr * nc * 4].reshape(nr, nc, 4), cv2.COLOR_BGRA2BGR, dst=tmp)
         cv2.copyTo(tmp, b.mask[: nr * nc].reshape(nr, nc), out[v0:v1, u0:u1])  # in place into the view
 
-    def _effects(self, img: NDArray[np.uint8], w_WB_B: FloatArray | None) -> NDArray[np.uint8]:
+    def _effects(self, image: NDArray[np.uint8], w_WB_B: FloatArray | None) -> NDArray[np.uint8]:
         opt = self.options
+        img: NDArray[Any] = image  # stays uint8; OpenCV's stubs return MatLike, without the dtype
         if self._vignette is not None:
             img = cv2.multiply(img, self._vignette, scale=1.0 / 255.0)
         if opt.exposure_time_s > 0 and w_WB_B is not None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import collections
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -251,7 +252,7 @@ def _to_u8(img: NDArray[np.float32]) -> NDArray[np.uint8]:
 
 
 _GROUND_CACHE_SIZE = 4
-_GROUND_CACHE: collections.OrderedDict[object, tuple[GroundTexture, dict[str, Any]]]
+_GROUND_CACHE: collections.OrderedDict[object, tuple[GroundTexture, Mapping[str, Any]]]
 _GROUND_CACHE = collections.OrderedDict()
 """Ground textures by (kind, size, texel, colour, distractors, generator state before), with the
 generator state after; least recently used first. One entry is ~1 MB (grey) or ~3 MB (colour) for the
@@ -438,7 +439,7 @@ def _paint_distractors(
             sd = np.hypot(du, dv) - length_px / 2
             shape, width_m, ang = "disc", spec.size_m, 0.0
         cover = np.clip(0.5 - sd, 0.0, 1.0).astype(np.float32)
-        bgr = tuple(int(c) for c in colors[i])
+        bgr = (int(colors[i, 0]), int(colors[i, 1]), int(colors[i, 2]))
         value = np.asarray(bgr, np.float32) if out.ndim == 3 else np.float32(float(colors[i] @ _LUMA_BGR))
         ix = np.ix_(rows % n, cols % n)
         c = cover[..., None] if out.ndim == 3 else cover
@@ -475,7 +476,8 @@ def make_deck_texture(
     """
     if length_m < pad.size_m or width_m < pad.size_m:
         raise ValueError(f"the deck ({length_m} x {width_m} m) must be at least the pad ({pad.size_m} m)")
-    tex = np.asarray(pad.texture(px_per_m))
+    # uint8 throughout (checked below); OpenCV's stubs return MatLike, without the dtype
+    tex: NDArray[Any] = np.asarray(pad.texture(px_per_m))
     n = tex.shape[0]
     if tex.dtype != np.uint8 or tex.shape[:2] != (n, n) or not (tex.ndim == 2 or tex.shape[2:] == (3,)):
         raise ValueError(f"a pad texture must be uint8 (n, n) or (n, n, 3), got {tex.dtype} {tex.shape}")
@@ -493,7 +495,7 @@ def make_deck_texture(
         deck = deck_gray + 4.0 * stain
     else:
         deck = np.full((rows, cols), deck_gray, np.float32)
-    img = _to_u8(deck.astype(np.float32))
+    img: NDArray[Any] = _to_u8(deck.astype(np.float32))
     if color:
         img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
     img[mx : mx + n, my : my + n] = tex
