@@ -58,6 +58,9 @@ class Airframe:
     """Half the footprint width of the landing gear (m)."""
     max_body_rate: float = 6.0
     """Largest body rate the planner may ask for (rad/s)."""
+    max_tilt_rad: float = math.radians(45.0)
+    """Largest tilt of the thrust from the vertical that the controller commands (rad), in (0, pi/2);
+    ``HighLevelGains.max_tilt`` overrides it."""
     body_drag_area_m2: float = 0.09
     """Area the air pushes on, for the bluff-body drag ``1/2 rho A |v_rel| v_rel`` of the wind models
     (m^2)."""
@@ -73,6 +76,8 @@ class Airframe:
             raise ValueError("mass, inertia and arm length must be positive")
         if self.thrust_to_weight <= 1.0:
             raise ValueError(f"thrust_to_weight must exceed 1 to fly, got {self.thrust_to_weight}")
+        if not 0.0 < self.max_tilt_rad < math.pi / 2:
+            raise ValueError(f"max_tilt_rad must be in (0, pi/2), got {self.max_tilt_rad}")
         if not self.body_drag_area_m2 >= 0.0:
             raise ValueError(f"body_drag_area_m2 must be >= 0, got {self.body_drag_area_m2}")
         d = self.arm_length / math.sqrt(2.0)

@@ -4,6 +4,7 @@ and a hover of the heavy airframe in the closed loop."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,14 @@ import yaml
 
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
 from alight.airframes import UNITS, load_airframe, packaged_airframes, read_airframe_file
-from alight.control import HighLevelController, HighLevelGains, low_level, pack_low_level_params
+from alight.control import (
+    HighLevelController,
+    HighLevelGains,
+    low_level,
+    pack_high_level_params,
+    pack_low_level_params,
+)
+from alight.control.high_level import HL_TAN_TILT
 from alight.errors import ConfigError
 from alight.scenario import scenario_from_dict
 from alight.sim.quadrotor import IX_W, initial_state, pack_params, step
@@ -25,11 +33,33 @@ def _physical(af: Airframe) -> dict[str, object]:
     return {f.name: getattr(af, f.name) for f in dataclasses.fields(af) if f.init}
 
 
+def _file_keys(af: Airframe) -> dict[str, object]:
+    """The keys of an airframe file for ``af`` (plain numbers; the tilt in degrees)."""
+    out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in _physical(af).items()}
+    out["max_tilt_deg"] = math.degrees(float(out.pop("max_tilt_rad")))  # type: ignore[arg-type]
+    return out
+
+
 def test_f450_file_is_the_default_airframe_exactly() -> None:
     f450 = load_airframe("f450")
     assert f450 == DEFAULT_AIRFRAME == Airframe()
     assert _physical(f450) == _physical(Airframe())  # every field, bit for bit
     np.testing.assert_array_equal(pack_params(f450), pack_params(Airframe()))
+    gains = HighLevelGains()
+    np.testing.assert_array_equal(
+        pack_high_level_params(f450, gains), pack_high_level_params(Airframe(), gains)
+    )
+    # the controller's tilt limit is still the 45 deg it always was
+    assert pack_high_level_params(f450, gains)[HL_TAN_TILT] == math.tan(math.radians(45.0))
+
+
+def test_controller_takes_the_tilt_limit_from_the_airframe_unless_the_gains_set_it() -> None:
+    m100 = load_airframe("matrice100")
+    assert pack_high_level_params(m100, HighLevelGains())[HL_TAN_TILT] == pytest.approx(
+        math.tan(math.radians(35))
+    )
+    gains = HighLevelGains(max_tilt=0.5)
+    assert pack_high_level_params(m100, gains)[HL_TAN_TILT] == pytest.approx(math.tan(0.5))
 
 
 @pytest.mark.parametrize("name", ["f450", "matrice100"])
@@ -45,9 +75,8 @@ def test_packaged_files_state_unit_and_source_of_every_number(name: str) -> None
 @pytest.mark.parametrize("name", ["f450", "matrice100"])
 def test_round_trip_through_a_user_file(tmp_path: Path, name: str) -> None:
     af = load_airframe(name)
-    plain = {k: (list(v) if isinstance(v, tuple) else v) for k, v in _physical(af).items()}
     path = tmp_path / "mine.yaml"
-    path.write_text(yaml.safe_dump(plain), encoding="utf-8")
+    path.write_text(yaml.safe_dump(_file_keys(af)), encoding="utf-8")
     assert load_airframe(str(path)) == af
     assert read_airframe_file(path).airframe() == af
 
@@ -60,7 +89,7 @@ def test_heavy_airframe_is_heavier_and_has_more_thrust() -> None:
 
 
 def _file(tmp_path: Path, **changes: object) -> str:
-    data = {k: (list(v) if isinstance(v, tuple) else v) for k, v in _physical(Airframe()).items()}
+    data = _file_keys(Airframe())
     data.update(changes)
     data = {k: v for k, v in data.items() if v is not None}
     path = tmp_path / "af.yaml"
@@ -79,6 +108,7 @@ def _file(tmp_path: Path, **changes: object) -> str:
         ({"motor_thrust_min_N": 5.0}, "must be below the largest rotor thrust"),
         ({"mass": {"value": 1.0, "unit": "g", "source": "x"}}, "mass: unit must be 'kg', got 'g'"),
         ({"mass": {"value": 1.0, "units": "kg"}}, "unknown key(s) ['units']"),
+        ({"max_tilt_deg": 89.0}, "max_tilt_deg: Input should be less than or equal to 80"),
         ({"body_drag_area_m2": float("nan")}, "body_drag_area_m2: Input should be a finite number"),
     ],
 )

@@ -20,6 +20,7 @@ value, a thrust-to-weight ratio below 1.2) is one :class:`alight.errors.ConfigEr
 | ``gear_height`` | m | >= 0 |
 | ``gear_half_width`` | m | > 0 |
 | ``max_body_rate`` | rad/s | > 0 |
+| ``max_tilt_deg`` | deg | in [10, 80]: the controller's tilt limit (in degrees, as spec sheets give it) |
 
 ``name`` and ``description`` (text) are optional.
 """
@@ -27,6 +28,7 @@ value, a thrust-to-weight ratio below 1.2) is one :class:`alight.errors.ConfigEr
 from __future__ import annotations
 
 import functools
+import math
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
@@ -58,6 +60,7 @@ UNITS: dict[str, str] = {
     "gear_height": "m",
     "gear_half_width": "m",
     "max_body_rate": "rad/s",
+    "max_tilt_deg": "deg",
 }
 """The unit of each physical key of an airframe file."""
 
@@ -85,6 +88,7 @@ class AirframeFile(BaseModel):
     gear_height: _NonNeg
     gear_half_width: _Pos
     max_body_rate: _Pos
+    max_tilt_deg: Annotated[float, Field(ge=10, le=80, allow_inf_nan=False)]
 
     @model_validator(mode="before")
     @classmethod
@@ -124,8 +128,9 @@ class AirframeFile(BaseModel):
         return self
 
     def airframe(self) -> Airframe:
-        fields = self.model_dump(exclude={"name", "description"})
-        return Airframe(**fields)
+        fields = self.model_dump(exclude={"name", "description", "max_tilt_deg"})
+        # 45 deg is stored as radians(45) exactly, so the f450 file equals Airframe() bit for bit.
+        return Airframe(**fields, max_tilt_rad=math.radians(self.max_tilt_deg))
 
 
 def _format(source: str, err: ValidationError) -> str:
