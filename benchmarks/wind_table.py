@@ -2,7 +2,10 @@
 
 Run: ``python benchmarks/wind_table.py OUT.jsonl AIRFRAME TURBULENCE SPEEDS SEEDS VARIANTS`` e.g.
 ``python benchmarks/wind_table.py runs/wind.jsonl matrice100 moderate 8,12 1,2,3,4,5 base,int2,l1``
-(then ``python benchmarks/wind_table.py --summary runs/wind.jsonl`` prints the markdown table).
+(then ``python benchmarks/wind_table.py --summary runs/wind.jsonl`` prints the markdown table), and
+``python benchmarks/wind_table.py --trim`` prints the tilt each airframe needs to hold a steady wind: the
+controller (integral 2.0, the airframe's tilt limit) and the fused rate loop + dynamics hold the origin for
+25 s in ``SteadyWind`` on the airframe's drag area.
 
 Every mission: preset ``groundtruth``, a 2 m/s circle, 90 s, wind along +x of W at the given mean speed,
 ``steady`` when TURBULENCE is ``none``, else ``dryden`` with that intensity. Variants: ``base`` (the
@@ -123,7 +126,50 @@ def summary(path: str) -> None:
         print("| " + " | ".join(cells) + " |")
 
 
+def trim(
+    airframe: str, speed: float, tilt_deg: float | None = None, seconds: float = 25.0
+) -> dict[str, float]:
+    """Hold the origin in a steady wind of ``speed`` along +x with the tilt limit ``tilt_deg`` (None: the
+    airframe's); the final tilt, drift and thrust."""
+    from alight.airframes import load_airframe
+    from alight.control import HighLevelController, HighLevelGains, low_level, pack_low_level_params
+    from alight.sim.quadrotor import IX_W, initial_state, pack_params, step
+    from alight.sim.wind import SteadyWind
+    from alight.types import EgoState, Reference, quat_to_rotmat
+
+    af = load_airframe(airframe)
+    limit = None if tilt_deg is None else math.radians(tilt_deg)
+    gains = HighLevelGains.from_bandwidth(3.0, ki=(2.0, 2.0, 2.0), integral_limit=6.0, max_tilt=limit)
+    ctl = HighLevelController(af, gains)
+    ll, sp = pack_low_level_params(af), pack_params(af)
+    wind = SteadyWind([speed, 0.0, 0.0], area_m2=af.body_drag_area_m2)
+    x = initial_state(np.zeros(3), 0.0, af.weight_N / 4.0)
+    z = np.zeros(3)
+    for i in range(int(seconds * 100)):
+        t = i * 0.01
+        ego = EgoState(t=t, p_WB=x[0:3], v_WB=x[3:6], q_WB=x[6:10], w_WB_B=x[10:13])
+        cmd = ctl.command(ego, Reference(t=t, p=z, v=z, a=z, j=z, yaw=0.0))
+        f_W, v_air = wind.force_W(t, x[0:3], x[3:6]), wind.air_velocity_W(t)
+        for _ in range(10):
+            u = low_level(cmd.thrust_N, np.array(cmd.w_WB_B_cmd), x[IX_W : IX_W + 3], ll)
+            x = step(x, u, f_W, v_air, sp, 0.001)
+    tilt = math.degrees(math.acos(quat_to_rotmat(x[6:10])[2, 2]))
+    return {
+        "tilt_deg": tilt,
+        "drift_mps": float(x[3]),
+        "thrust_N": float(np.sum(x[13:17])),
+        "offset_m": float(x[0]),
+    }
+
+
 def main(argv: list[str]) -> None:
+    if argv[0] == "--trim":
+        cases = [("f450", v, None) for v in (6, 7, 8, 10, 12, 14)] + [("f450", v, 60.0) for v in (12, 14)]
+        cases += [("matrice100", v, None) for v in (12, 14, 18)]
+        for airframe, speed, tilt in cases:
+            row = trim(airframe, float(speed), tilt)
+            print(json.dumps({"airframe": airframe, "wind_mps": speed, "tilt_limit_deg": tilt, **row}))
+        return
     if argv[0] == "--summary":
         summary(argv[1])
         return
