@@ -49,6 +49,11 @@ class PlatformSpec(_Strict):
     random_max_curvature: PositiveFloat = 0.15
 
 
+def _as_list(value: Any) -> Any:
+    """Tuples and lists alike, for comparing a value with its default."""
+    return [_as_list(v) for v in value] if isinstance(value, tuple | list) else value
+
+
 class WindSpec(_Strict):
     """Wind: none, a steady air velocity (whose direction may turn), that wind with Dryden turbulence, or
     the gust model of paper 004 Sec. IV-C. Every key acts on the model it is set with or is refused."""
@@ -72,15 +77,26 @@ class WindSpec(_Strict):
     @model_validator(mode="after")
     def _keys_act(self) -> WindSpec:
         # A key that would silently do nothing with the chosen model is an error (a typo of the model
-        # must not fly a different wind than the file describes).
+        # must not fly a different wind than the file describes). ``none`` is the exception: wind off,
+        # with the other keys kept for a campaign that sweeps the model over a base setting them.
+        if self.model == "none":
+            return self
         mean_keys = {"velocity_mps", "direction_rate_rad_s", "direction_changes"}
         acts = {
-            "none": set(),
             "steady": mean_keys,
             "dryden": mean_keys | {"turbulence", "turbulence_min_airspeed_mps"},
             "gust": {"gust_power_N"},
         }[self.model]
-        idle = sorted((self.model_fields_set - {"model"}) - acts)
+        # Only keys set away from their default count: a dumped and reloaded scenario (campaigns do
+        # that) carries every key at its default value.
+        defaults = {
+            name: f.get_default(call_default_factory=True) for name, f in type(self).model_fields.items()
+        }
+        idle = sorted(
+            k
+            for k in (self.model_fields_set - {"model"}) - acts
+            if _as_list(getattr(self, k)) != _as_list(defaults[k])
+        )
         if idle:
             raise ValueError(f"wind model '{self.model}' does not use {', '.join(idle)}")
         if self.model == "dryden" and self.turbulence == "none":

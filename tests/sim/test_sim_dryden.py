@@ -192,3 +192,31 @@ def test_drag_area_comes_from_the_airframe() -> None:
     f = wind.force_W(0.0, p, v)
     rel = wind.air_velocity_W(0.0) - v
     np.testing.assert_allclose(f, 0.5 * 1.2 * heavy.body_drag_area_m2 * np.linalg.norm(rel) * rel)
+
+
+@pytest.mark.parametrize(
+    ("wind", "message"),
+    [
+        ({"model": "gust", "velocity_mps": [8.0, 0.0, 0.0]}, "wind model 'gust' does not use velocity_mps"),
+        ({"model": "steady", "turbulence": "light"}, "wind model 'steady' does not use turbulence"),
+        ({"model": "steady", "gust_power_N": 3.0}, "does not use gust_power_N"),
+        ({"model": "dryden"}, "wind model 'dryden' needs turbulence"),
+        ({"model": "dryden", "turbulence": "strong"}, "turbulence: Input should be"),
+        ({"model": "steady", "direction_changes": [[-1.0, 0.5]]}, "greater than or equal to 0"),
+    ],
+)
+def test_wind_keys_act_or_are_refused(wind: dict[str, object], message: str) -> None:
+    from alight.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=message):
+        scenario_from_dict({"wind": wind}, "s.yaml")
+
+
+def test_wind_spec_survives_a_dump_and_reload() -> None:
+    for wind in (
+        {"model": "dryden", "turbulence": "severe", "direction_rate_rad_s": 0.01},
+        {"model": "gust", "gust_power_N": 3.45},
+        {"model": "none", "gust_power_N": 7.76},  # kept unused: campaigns sweep the model over it
+    ):
+        s = scenario_from_dict({"wind": wind})
+        assert scenario_from_dict(s.model_dump(mode="json")) == s
