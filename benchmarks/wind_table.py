@@ -10,8 +10,9 @@ controller (integral 2.0, the airframe's tilt limit) and the fused rate loop + d
 Every mission: preset ``groundtruth``, a 2 m/s circle, 90 s, wind along +x of W at the given mean speed,
 ``steady`` when TURBULENCE is ``none``, else ``dryden`` with that intensity. Variants: ``base`` (the
 preset as it is), ``int2`` (``controller.integral_gain: 2.0``), ``l1`` (``controller.l1_adaptive:
-true``), and ``tilt60``, ``tilt60+int2``, ``tilt60+l1`` (the controller's tilt limit raised to 60 deg
-by patching ``HighLevelGains.from_bandwidth``, the limit has no scenario key). One JSON line per
+true``), ``int2+l1`` (both), and ``tilt60``, ``tilt60+int2``, ``tilt60+l1`` (the controller's tilt
+limit raised to 60 deg by patching ``HighLevelGains.from_bandwidth``, the limit has no scenario key).
+One JSON line per
 mission: outcome, whether it left take-off, the hold error (horizontal distance between the vehicle
 and its reference, RMS and max over t > 3 s: take-off, exploration and tracking alike) and the
 touchdown error.
@@ -34,6 +35,7 @@ VARIANTS: dict[str, tuple[float | None, dict[str, object]]] = {
     "base": (None, {}),
     "int2": (None, {"integral_gain": 2.0}),
     "l1": (None, {"l1_adaptive": True}),
+    "int2+l1": (None, {"integral_gain": 2.0, "l1_adaptive": True}),
     "tilt60": (60.0, {}),
     "tilt60+int2": (60.0, {"integral_gain": 2.0}),
     "tilt60+l1": (60.0, {"l1_adaptive": True}),
