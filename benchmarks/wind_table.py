@@ -12,10 +12,9 @@ Every mission: preset ``groundtruth``, a 2 m/s circle, 90 s, wind along +x of W 
 preset as it is), ``int2`` (``controller.integral_gain: 2.0``), ``l1`` (``controller.l1_adaptive:
 true``), ``int2+l1`` (both), and ``tilt60``, ``tilt60+int2``, ``tilt60+l1`` (the controller's tilt
 limit raised to 60 deg by patching ``HighLevelGains.from_bandwidth``, the limit has no scenario key).
-One JSON line per
-mission: outcome, whether it left take-off, the hold error (horizontal distance between the vehicle
-and its reference, RMS and max over t > 3 s: take-off, exploration and tracking alike) and the
-touchdown error.
+One JSON line per mission: outcome, whether it left take-off, the hold error (horizontal distance
+between the vehicle and its reference, RMS and max over t > 3 s: take-off, exploration and tracking
+alike) and the touchdown error.
 """
 
 from __future__ import annotations
