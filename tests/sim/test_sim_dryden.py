@@ -220,3 +220,31 @@ def test_wind_spec_survives_a_dump_and_reload() -> None:
     ):
         s = scenario_from_dict({"wind": wind})
         assert scenario_from_dict(s.model_dump(mode="json")) == s
+
+
+def test_dryden_mission_is_deterministic_with_the_seed() -> None:
+    from alight.evaluation.runner import run_mission
+
+    def fly(seed: int) -> np.ndarray:
+        s = scenario_from_dict(
+            {
+                "seed": seed,
+                "duration_s": 6.0,
+                "airframe": "matrice100",
+                "wind": {
+                    "model": "dryden",
+                    "velocity_mps": [10.0, 0.0, 0.0],
+                    "turbulence": "moderate",
+                    "direction_changes": [[3.0, 0.5]],
+                },
+            }
+        )
+        log = run_mission(s).log
+        assert log is not None
+        return np.hstack([log["p_WB"], log["f_wind_W"]])
+
+    a, b, c = fly(1), fly(1), fly(2)
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a, c)
+    # the wind pushes: a 10 m/s mean on the matrice100's 0.04 m^2 is ~2.4 N, turbulence around it
+    assert 0.5 < float(np.median(np.linalg.norm(a[:, 3:6], axis=1))) < 10.0
