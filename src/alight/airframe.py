@@ -12,7 +12,11 @@ The default airframe is the one of paper 000 (Falanga et al. 2017, Sec. III-C): 
   0.025 s spinning down, drag torque = 0.016 m x thrust;
 - rotor drag: linear in the body-frame airspeed, mass-normalised coefficients d_x = d_y = 0.3, d_z = 0.05
   (1/s), of the order that Faessler, Franchi, Scaramuzza identified ("Differential flatness of quadrotor
-  dynamics subject to rotor drag", RA-L 2018) for a vehicle of this class.
+  dynamics subject to rotor drag", RA-L 2018) for a vehicle of this class;
+- body drag area: 0.09 m^2, the area paper 004 (Sec. IV-C) lets the wind push on.
+
+The same numbers, each with its unit and source, are the packaged airframe ``f450``
+(``alight/airframes/f450.yaml``); ``alight.airframes.load_airframe`` reads those files.
 """
 
 from __future__ import annotations
@@ -54,10 +58,17 @@ class Airframe:
     """Half the footprint width of the landing gear (m)."""
     max_body_rate: float = 6.0
     """Largest body rate the planner may ask for (rad/s)."""
+    max_tilt_rad: float = math.radians(45.0)
+    """Largest tilt of the thrust from the vertical that the controller commands (rad), in (0, pi/2);
+    ``HighLevelGains.max_tilt`` overrides it."""
+    body_drag_area_m2: float = 0.09
+    """Area the air pushes on, for the bluff-body drag ``1/2 rho A |v_rel| v_rel`` of the wind models
+    (m^2)."""
 
-    rotor_positions_B: FloatArray = field(init=False, repr=False)
+    # Derived from the fields above: left out of ==, which would otherwise compare arrays elementwise.
+    rotor_positions_B: FloatArray = field(init=False, repr=False, compare=False)
     """Rotor positions in B (m), shape (4, 3)."""
-    rotor_spin: FloatArray = field(init=False, repr=False)
+    rotor_spin: FloatArray = field(init=False, repr=False, compare=False)
     """+1 for counter-clockwise rotors (their drag torque pushes the body clockwise, -z), shape (4,)."""
 
     def __post_init__(self) -> None:
@@ -65,6 +76,10 @@ class Airframe:
             raise ValueError("mass, inertia and arm length must be positive")
         if self.thrust_to_weight <= 1.0:
             raise ValueError(f"thrust_to_weight must exceed 1 to fly, got {self.thrust_to_weight}")
+        if not 0.0 < self.max_tilt_rad < math.pi / 2:
+            raise ValueError(f"max_tilt_rad must be in (0, pi/2), got {self.max_tilt_rad}")
+        if not self.body_drag_area_m2 >= 0.0:
+            raise ValueError(f"body_drag_area_m2 must be >= 0, got {self.body_drag_area_m2}")
         d = self.arm_length / math.sqrt(2.0)
         pos = np.array([[d, d, 0.0], [-d, d, 0.0], [-d, -d, 0.0], [d, -d, 0.0]])
         pos.setflags(write=False)

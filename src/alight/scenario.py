@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from alight.errors import ConfigError
 
@@ -98,14 +98,59 @@ class PlatformSpec(_Strict):
     """Changes of speed along the path (the path's geometry stays); None: ``speed_mps`` throughout."""
 
 
-class WindSpec(_Strict):
-    """Wind: none, a steady air velocity, or the gust model of paper 004 Sec. IV-C."""
+def _as_list(value: Any) -> Any:
+    """Tuples and lists alike, for comparing a value with its default."""
+    return [_as_list(v) for v in value] if isinstance(value, tuple | list) else value
 
-    model: Literal["none", "steady", "gust"] = "none"
+
+class WindSpec(_Strict):
+    """Wind: none, a steady air velocity (whose direction may turn), that wind with Dryden turbulence, or
+    the gust model of paper 004 Sec. IV-C. Every key acts on the model it is set with or is refused."""
+
+    model: Literal["none", "steady", "gust", "dryden"] = "none"
     velocity_mps: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = (0.0, 0.0, 0.0)
-    """Steady wind: the air's velocity in W (m/s)."""
+    """Steady and dryden: the mean air velocity in W at t = 0 (m/s)."""
     gust_power_N: PositiveFloat = 7.0
     """Gust model: the initial force ``power_init`` (N); 3.45 and 7.76 N are the 8 and 12 m/s cases."""
+    turbulence: Literal["none", "light", "moderate", "severe"] = "none"
+    """Dryden: MIL-F-8785C low-altitude intensity (the wind at 20 ft: 15, 30, 45 kt); dryden needs one
+    other than none, the other models take none."""
+    turbulence_min_airspeed_mps: PositiveFloat = 1.0
+    """Dryden: floor of the airspeed V through the frozen turbulence field (m/s); the filters' time
+    constants are L / V."""
+    direction_rate_rad_s: FiniteFloat = 0.0
+    """Steady and dryden: the mean wind turns about +z at this rate (rad/s, counter-clockwise)."""
+    direction_changes: list[tuple[NonNegFloat, FiniteFloat]] = Field(default_factory=list)
+    """Steady and dryden: steps ``[t_s, delta_rad]``: at t_s the mean wind turns by delta_rad."""
+
+    @model_validator(mode="after")
+    def _keys_act(self) -> WindSpec:
+        # A key that would silently do nothing with the chosen model is an error (a typo of the model
+        # must not fly a different wind than the file describes). ``none`` is the exception: wind off,
+        # with the other keys kept for a campaign that sweeps the model over a base setting them.
+        if self.model == "none":
+            return self
+        mean_keys = {"velocity_mps", "direction_rate_rad_s", "direction_changes"}
+        acts = {
+            "steady": mean_keys,
+            "dryden": mean_keys | {"turbulence", "turbulence_min_airspeed_mps"},
+            "gust": {"gust_power_N"},
+        }[self.model]
+        # Only keys set away from their default count: a dumped and reloaded scenario (campaigns do
+        # that) carries every key at its default value.
+        defaults = {
+            name: f.get_default(call_default_factory=True) for name, f in type(self).model_fields.items()
+        }
+        idle = sorted(
+            k
+            for k in (self.model_fields_set - {"model"}) - acts
+            if _as_list(getattr(self, k)) != _as_list(defaults[k])
+        )
+        if idle:
+            raise ValueError(f"wind model '{self.model}' does not use {', '.join(idle)}")
+        if self.model == "dryden" and self.turbulence == "none":
+            raise ValueError("wind model 'dryden' needs turbulence: light, moderate or severe")
+        return self
 
 
 class PerceptionSpec(_Strict):
@@ -439,6 +484,9 @@ class Scenario(_Strict):
     controller: ControllerSpec = Field(default_factory=ControllerSpec)
     contact: ContactSpec = Field(default_factory=ContactSpec)
     energy: EnergySpec = Field(default_factory=EnergySpec)
+    airframe: str = "f450"
+    """The vehicle, for the simulator and the controller alike: a packaged airframe (``f450``, paper
+    000's, or ``matrice100``) or an airframe YAML file (``alight.airframes``)."""
     name: str | None = None
     """Free text naming the scenario in reports."""
 
@@ -449,6 +497,17 @@ class Scenario(_Strict):
         if self.preset not in PRESETS:
             raise ValueError(f"unknown preset '{self.preset}', expected one of {sorted(PRESETS)}")
         return self
+
+    @field_validator("airframe")
+    @classmethod
+    def _known_airframe(cls, value: str) -> str:
+        from alight.airframes import load_airframe
+
+        try:
+            load_airframe(value)
+        except ConfigError as err:
+            raise ValueError(str(err)) from None
+        return value
 
     def with_seed(self, seed: int) -> Scenario:
         return self.model_copy(update={"seed": int(seed)})

@@ -490,8 +490,10 @@ class HighLevelGains:
     """Time constant of the tilt (roll/pitch) error feedback (s)."""
     tau_yaw: float = 0.3
     """Time constant of the yaw error feedback (s)."""
-    max_tilt: float = math.radians(45.0)
-    """Largest angle between the commanded thrust and the world z axis (rad), in (0, pi/2)."""
+    max_tilt: float | None = None
+    """Largest angle between the commanded thrust and the world z axis (rad), in (0, pi/2); None: the
+    airframe's ``max_tilt_rad`` (45 deg for the default F450), so that the vehicle's own limit, not a
+    controller constant, decides how much wind it can lean into."""
     min_vertical_accel: float = 2.0
     """Lowest vertical part of the commanded thrust vector (m/s^2): keeps the vehicle upright."""
     rotor_drag_compensation: bool = True
@@ -526,7 +528,7 @@ class HighLevelGains:
             val = getattr(self, name)
             if not (math.isfinite(val) and val > 0):
                 raise ValueError(f"{name} must be positive and finite, got {val}")
-        if not (0.0 < self.max_tilt < math.pi / 2):
+        if self.max_tilt is not None and not (0.0 < self.max_tilt < math.pi / 2):
             raise ValueError(f"max_tilt must be in (0, pi/2) rad, got {self.max_tilt}")
 
     @classmethod
@@ -556,7 +558,7 @@ def pack_high_level_params(airframe: Airframe, gains: HighLevelGains) -> FloatAr
     p[HL_I_LIM] = gains.integral_limit
     p[HL_K_TILT] = 1.0 / gains.tau_tilt
     p[HL_K_YAW] = 1.0 / gains.tau_yaw
-    p[HL_TAN_TILT] = math.tan(gains.max_tilt)
+    p[HL_TAN_TILT] = math.tan(airframe.max_tilt_rad if gains.max_tilt is None else gains.max_tilt)
     p[HL_FZ_MIN] = gains.min_vertical_accel
     p[HL_C_MAX] = c_max
     p[HL_MASS] = airframe.mass

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 import alight
-from alight.airframe import DEFAULT_AIRFRAME, Airframe
+from alight.airframe import Airframe
+from alight.airframes import load_airframe
 from alight.cameras.pinhole import camera_pose_W
 from alight.control.rate import pack_low_level_params
 from alight.energy import flight_energy_J
@@ -50,13 +51,22 @@ from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFi
 from alight.sim.textures import DistractorSpec, make_ground_texture
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
-from alight.sim.wind import GustWind, NoWind, SteadyWind
+from alight.sim.wind import (
+    TURBULENCE_W20_MPS,
+    DrydenWind,
+    GustWind,
+    NoWind,
+    SteadyWind,
+    WindDirection,
+    WindModel,
+)
 from alight.types import Mode, Observation, Outcome, quat_to_rotmat
 
 PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
 POST_CONTACT_S = 1.0  # simulated after a landing, with the vehicle resting on the pad
 ABORT_HOLD_S = 2.0  # an aborted mission ends this long after the abort
+WIND_DT = 0.01  # the wind is updated where the physics batches start: at the 100 Hz control ticks
 FALSE_LOCK_S = 1.0  # tracking or landing on an estimate > 2 pad sizes from the pad this long: a false lock
 
 
@@ -121,11 +131,26 @@ def _place_platform(s: Scenario, rng: np.random.Generator) -> Platform:
     return platform
 
 
-def _wind(s: Scenario, rng: np.random.Generator) -> NoWind | SteadyWind | GustWind:
-    if s.wind.model == "steady":
-        return SteadyWind(np.array(s.wind.velocity_mps, dtype=float))
-    if s.wind.model == "gust":
-        return GustWind(rng, power_init_N=s.wind.gust_power_N)
+def _wind(s: Scenario, rng: np.random.Generator, airframe: Airframe) -> WindModel:
+    """The scenario's wind. The drag models push on the airframe's body drag area; paper 004's gust
+    model is a force with its own power and stays as the paper writes it."""
+    w = s.wind
+    direction = WindDirection(w.direction_rate_rad_s, [(t, d) for t, d in w.direction_changes])
+    area = airframe.body_drag_area_m2
+    if w.model == "steady":
+        return SteadyWind(np.array(w.velocity_mps, dtype=float), area_m2=area, direction=direction)
+    if w.model == "dryden":
+        return DrydenWind(
+            rng,
+            np.array(w.velocity_mps, dtype=float),
+            TURBULENCE_W20_MPS[w.turbulence],
+            dt=WIND_DT,
+            min_airspeed_mps=w.turbulence_min_airspeed_mps,
+            area_m2=area,
+            direction=direction,
+        )
+    if w.model == "gust":
+        return GustWind(rng, power_init_N=w.gust_power_N)
     return NoWind()
 
 
@@ -136,20 +161,24 @@ FrameSink = Callable[[float, np.ndarray, list[Observation]], None]
 def run_mission(
     scenario: Scenario,
     *,
-    airframe: Airframe = DEFAULT_AIRFRAME,
+    airframe: Airframe | None = None,
     record: bool = True,
     frame_sink: FrameSink | None = None,
 ) -> MissionRun:
-    """Fly one mission of ``scenario`` and return its result (and log when ``record``). ``frame_sink``
-    sees every camera frame with its detections (for replays); it must not modify them."""
+    """Fly one mission of ``scenario`` and return its result (and log when ``record``). ``airframe``
+    overrides the scenario's ``airframe:``; the simulator, the wind's drag and the preset's controller
+    and planner all read this one. ``frame_sink`` sees every camera frame with its detections (for
+    replays); it must not modify them."""
     wall0 = time.perf_counter()
     s = scenario
+    if airframe is None:
+        airframe = load_airframe(s.airframe)
     seeds = np.random.SeedSequence(s.seed).spawn(9)
     rngs = [np.random.default_rng(c) for c in seeds[:8]]
     rng_place, rng_render, rng_wind, rng_imu, rng_odo, rng_range, rng_perc, rng_pipe = rngs
 
     platform = _place_platform(s, rng_place)
-    wind = _wind(s, rng_wind)
+    wind = _wind(s, rng_wind, airframe)
     imu = Imu(ImuConfig(), rng_imu)
     odometry = Odometry(OdometryConfig(), rng_odo)
     rangefinder = RangeFinder(RangeFinderConfig(origin_B=(0.0, 0.0, -airframe.gear_height)), rng_range)
