@@ -40,7 +40,7 @@ def _fly(x, seconds, deck, thrust_N=0.0, motors_on=False, deck_moves=True):
     noise = np.zeros((1, 12))
     xs, fs, cs = [], [], []
     d = deck.copy()
-    for k in range(round(seconds / (DT * N_SUB))):
+    for _ in range(round(seconds / (DT * N_SUB))):
         inputs[IN_DECK : IN_DECK + Q.N_DK] = d
         out, imu, touch, _ = tick_batch(
             x, inputs, PAR, LL, np.zeros(6), noise, np.ones(6), DT, N_SUB, CP, 1, -math.inf, math.inf

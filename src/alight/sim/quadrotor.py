@@ -286,7 +286,8 @@ def step_many(
 # foot, a 1 kg vehicle's vertical mode is 100 rad/s (0.1 rad per step), the roll/pitch mode on feet 0.2 m
 # out with J = 0.0104 kg m^2 about 200 rad/s (0.2 rad per step), far from RK4's |lambda dt| ~ 2.8 limit;
 # the friction's regularisation (slip speed 0.02 m/s) keeps its stiffness (mu m g / v_slip / m) near
-# 300 1/s (0.3 per step); its price is a creep of the feet, ~1 cm/s on a deck braking at 2.5 m/s^2. tests/sim/test_sim_contact.py checks rest, bounce, friction and a braking deck.
+# 300 1/s (0.3 per step); its price is a creep of the feet, ~1 cm/s on a deck braking at 2.5 m/s^2.
+# tests/sim/test_sim_contact.py checks rest, impact, bounce, friction, a braking deck and the edges.
 
 CP_K = 0
 """Normal stiffness per foot (N/m)."""
