@@ -417,16 +417,17 @@ class Odometry:
 class RangeFinderConfig:
     """A TeraRanger One-like time-of-flight distance sensor pointing along -z_B.
 
-    The real sensor measures 0.2 to 14 m; the simulator's default ``min_range_m`` is 0 because the
-    landing logic wants readings down to touchdown (set 0.2 to model the real blind zone).
+    The real sensor measures 0.2 to 14 m, and so does this one by default: closer than ``min_range_m``
+    (the blind zone) it reports ``-inf``, never a number, so the onboard land detector cannot rely on a
+    reading of ~0 at touchdown (set 0 for an ideal sensor).
     """
 
     rate_hz: float = 100.0
     """Sample rate (Hz)."""
     max_range_m: float = 14.0
     """Longest range reported (m)."""
-    min_range_m: float = 0.0
-    """Shortest range reported (m)."""
+    min_range_m: float = 0.2
+    """Shortest range reported (m): the blind zone."""
     noise_std_m: float = 0.02
     """White noise on the range (m)."""
     origin_B: tuple[float, float, float] = (0.0, 0.0, -0.10)
