@@ -107,3 +107,18 @@ def test_bad_config_raises(name):
         TouchdownConfig(**{name: 0.0})
     with pytest.raises(ValueError, match="low_thrust_fraction"):
         TouchdownConfig(low_thrust_fraction=1.0)
+
+
+def test_level_rates_turn_the_body_upright_without_yaw():
+    from scipy.spatial.transform import Rotation
+
+    det = TouchdownDetector(CFG)
+    for euler in ((0.2, 0.0, 1.0), (0.0, -0.3, -2.0), (0.1, 0.15, 0.5)):
+        q = Rotation.from_euler("xyz", euler).as_quat()
+        w = det.level_rates(q)
+        assert w[2] == 0.0
+        # a small step along w reduces the tilt
+        R = Rotation.from_quat(q)
+        after = R * Rotation.from_rotvec(w * 1e-3)
+        assert after.as_matrix()[2, 2] > R.as_matrix()[2, 2]
+    np.testing.assert_allclose(det.level_rates(np.array([0.0, 0.0, 0.3, 0.95393920141])), 0.0, atol=1e-12)

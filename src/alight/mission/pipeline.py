@@ -394,4 +394,6 @@ class Pipeline:
         v_z_rel = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
         if self.touchdown.update(t, v_z_rel, self.range_raw_m, thrust) is TouchdownState.LANDED:
             return Command(t, 0.0, _ZERO3, motors_off=True)
-        return cmd if scale == 1.0 else Command(t, thrust, cmd.w_WB_B_cmd)
+        if self.touchdown.spooling():
+            return Command(t, thrust, self.touchdown.level_rates(ego.q_WB))
+        return cmd

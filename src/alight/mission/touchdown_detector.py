@@ -13,8 +13,9 @@ each a condition held for a time) in three states:
     a valid reading below ``range_floor_m`` or the sensor's "too close" report, ``-inf`` in ROS REP 117),
     held for ``ground_contact_s``.
 ``GROUND_CONTACT``
-    the thrust is spooled down (:meth:`thrust_scale`, a ramp to zero over ``spool_down_s``), as PX4 lowers
-    its thrust on ground contact: a vehicle that is really on the deck stays still; one that is not
+    the thrust is spooled down (:meth:`thrust_scale`, a ramp to zero over ``spool_down_s``) and the
+    attitude levelled (:meth:`level_rates`), as PX4 lowers its thrust and drops the horizontal thrust on
+    ground contact: a vehicle that is really on the deck stays still; one that is not
     (a hover in the range finder's blind zone, a false impact) starts to sink, its vertical speed breaks
     the condition and the detector returns to ``AIRBORNE`` with full thrust before it has fallen far.
 ``LANDED``
@@ -30,6 +31,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import StrEnum
+
+import numpy as np
 
 from alight.types import GRAVITY_MPS2, FloatArray
 
@@ -62,6 +65,10 @@ class TouchdownConfig:
     """Landed needs the commanded thrust below this fraction of the hover thrust ... """
     landed_s: float = 0.3
     """... for this long, with ground contact kept (s) (PX4: maybe-landed then landed, 0.3 s each)."""
+    level_gain_per_s: float = 4.0
+    """On ground contact the attitude command is replaced by one that levels the vehicle at this rate per
+    radian of tilt (1/s): as PX4 removes the horizontal thrust on ground contact, a vehicle that kept
+    leaning into a turning deck's acceleration would push itself over one pair of feet."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -74,6 +81,7 @@ class TouchdownConfig:
             "spool_down_s",
             "low_thrust_fraction",
             "landed_s",
+            "level_gain_per_s",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
@@ -115,6 +123,21 @@ class TouchdownDetector:
         if self.state is TouchdownState.GROUND_CONTACT and self._spool_t0 is not None:
             return max(0.0, 1.0 - (t - self._spool_t0) / self.config.spool_down_s)
         return 1.0
+
+    def spooling(self) -> bool:
+        """True while the thrust spools down on ground contact (the attitude is levelled then)."""
+        return self.state is TouchdownState.GROUND_CONTACT
+
+    def level_rates(self, q_WB: FloatArray) -> FloatArray:
+        """Body-rate command (rad/s, in B) that turns the body z axis toward the vertical at
+        ``level_gain_per_s`` per radian, with no yaw rate: w_B = k e3 x (R^T e_z), i.e. k R^T (z_B x e_z).
+        ``q_WB``: the attitude (x, y, z, w)."""
+        x, y, z, w = (float(v) for v in q_WB)
+        # e_z expressed in B: the third row of R_WB
+        ex = 2.0 * (x * z - w * y)
+        ey = 2.0 * (y * z + w * x)
+        k = self.config.level_gain_per_s
+        return np.array([-k * ey, k * ex, 0.0])
 
     def update(self, t: float, v_z_rel_mps: float, range_m: float | None, thrust_N: float) -> TouchdownState:
         """Advance to ``t``. ``v_z_rel_mps``: the ego estimate's vertical speed relative to the platform
