@@ -134,3 +134,26 @@ def test_one_foot_over_the_edge_tips_the_vehicle():
     xs, _, _ = _fly(x, 1.5, _deck(), deck_moves=False)
     R = Q.quat_to_rotmat(xs[-1, Q.SL_Q])
     assert math.degrees(math.acos(R[2, 2])) > 30.0
+
+
+def test_the_deck_brakes_at_the_moment_of_contact():
+    # descending at 0.4 m/s with the deck's 3 m/s matched, the deck starts braking at 4 m/s^2 as the feet
+    # touch (platform.speed_profile brake_stop's case): friction (mu g = 5.9 m/s^2) takes the vehicle
+    # along; it ends up at rest on the deck, where it touched down, upright
+    lead = 0.01 / 0.4  # the feet are 1 cm above the deck: contact after 25 ms
+    d = _deck(v=(3.0, 0.0, 0.0))
+    x = _above_deck(0.01, v=(3.0, 0.0, -0.4))
+    xs, _, cs = _fly(x, lead, d)
+    deck_now = np.empty(Q.N_DK)
+    Q.deck_at(d, lead, deck_now)
+    deck_now[Q.DK_A] = -4.0
+    xs2, fs, cs2 = _fly(xs[-1], 0.75, deck_now)
+    stop = np.empty(Q.N_DK)
+    Q.deck_at(deck_now, 0.75, stop)  # the deck has stopped: 3 - 4 * 0.75 = 0
+    assert stop[Q.DK_V] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(cs2[10:, 0] == 4)  # on the deck throughout the braking
+    assert xs2[-1, Q.IX_V] == pytest.approx(0.0, abs=0.03)
+    assert abs(xs2[-1, 0] - stop[Q.DK_P]) < 0.05  # slid less than 5 cm on the deck
+    R = Q.quat_to_rotmat(xs2[-1, Q.SL_Q])
+    assert math.degrees(math.acos(min(1.0, R[2, 2]))) < 3.0
+    assert np.max(np.abs(fs[:, 0])) > 3.0  # the accelerometer feels the braking through the feet
