@@ -67,6 +67,7 @@ from alight.types import Mode, Observation, Outcome, quat_to_rotmat
 
 PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
+_LANDING_PHASES = ("descend", "done")  # the final action's phases where touching the ground is its end
 LIFT_OFF_M = 0.005  # feet this far above the surface they touched, touching nothing: a lift-off (bounce)
 FALSE_LOCK_S = 1.0  # tracking or landing on an estimate > 2 pad sizes from the pad this long: a false lock
 
@@ -323,6 +324,8 @@ def run_mission(
 
         if not airborne and p_WB[2] - gear > 0.05:
             airborne = True
+        # an abort's descent ends on the ground (or wherever it is): there a touch is its safe end
+        ground_ok = abort_landing and pipeline.mission.abort_phase in _LANDING_PHASES
         if airborne and (on_deck or on_ground or touching):
             # Contact bookkeeping from the truth: the first contact is judged (DESIGN.md's limits, on the
             # approach: speeds and tilt of the tick before the feet touched, before the contact force
@@ -336,7 +339,7 @@ def run_mission(
                     touch_z = 0.0 if surface == "ground" else float(truth.p_WP[2])
                     judged = judge_contact(
                         p_WB, x_prev[SL_V], quat_to_rotmat(x_prev[SL_Q]), truth, pad, gear, limits,
-                        surface=surface, ground_ok=abort_landing,
+                        surface=surface, ground_ok=ground_ok,
                     )  # fmt: skip
                     if judged is not None:
                         if contact is None:
@@ -346,7 +349,7 @@ def run_mission(
                             if contact is not judged:
                                 settle_reason = f"after a bounce: {judged.reason}"
                             break
-                elif on_ground and not abort_landing:
+                elif on_ground and not ground_ok:
                     outcome, settle_reason = Outcome.CRASHED, "ground"  # slid or tipped off the deck
                     break
             elif p_WB[2] - gear - touch_z > LIFT_OFF_M:
@@ -355,7 +358,14 @@ def run_mission(
         if t_motors_off is not None and t - t_motors_off >= s.contact.settle_s:
             truth = truths.at(k)
             settled, settle_reason = judge_settled(
-                p_WB, quat_to_rotmat(q_WB), truth, pad, limits, on_deck, on_ground, ground_ok=abort_landing
+                p_WB,
+                quat_to_rotmat(q_WB),
+                truth,
+                pad,
+                limits,
+                on_deck,
+                on_ground,
+                ground_ok=ground_ok,
             )
             if settled is Outcome.CRASHED:
                 outcome = Outcome.CRASHED
@@ -372,7 +382,8 @@ def run_mission(
             continue
         if k % every_range == 0:
             r = rangefinder.measure_at(p_WB, q_WB, truth_p[k], float(truths.yaw[k]), pad)
-            pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
+            # as the sensor reports it: -inf inside its blind zone, +inf beyond its range (REP 117)
+            pipeline.on_range(t, r)
         if t + 1e-9 >= next_capture:
             # An image (or the truth sensor's report) is taken now and reaches the pipeline after the
             # processing latency; what it shows is fixed at the capture time.

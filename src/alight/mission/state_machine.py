@@ -269,7 +269,8 @@ class Mission:
         return math.inf if target is None else t - target.t_last_measurement
 
     def hover_point_W(self) -> FloatArray:
-        return self.takeoff_point_W + np.array([0.0, 0.0, self.config.takeoff_altitude_m])
+        p: FloatArray = self.takeoff_point_W + np.array([0.0, 0.0, self.config.takeoff_altitude_m])
+        return p
 
     # -- the step ----------------------------------------------------------------------------------
     def step(
