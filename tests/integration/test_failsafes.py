@@ -102,3 +102,12 @@ def test_time_budget_aborts_and_hovers() -> None:
     assert r["outcome"] == "aborted" and r["time_first_contact_s"] is None
     assert _kinds(r)[-1] == "final_action_complete"
     assert math.isfinite(r["simulated_time_s"]) and r["simulated_time_s"] < 30.0
+
+
+@pytest.mark.slow
+def test_target_loss_limit_aborts_and_hovers() -> None:
+    r, _ = _fly(faults={"blackouts": [[5.0, 40.0]]}, mission={"max_target_losses": 0})
+    assert r["abort_reason"] == "too many target losses"
+    assert r["outcome"] == "aborted", (r["mode_history"], r["failsafe_events"])
+    assert _kinds(r)[:2] == ["coast", "retry_limit"] and _kinds(r)[-1] == "final_action_complete"
+    assert _modes(r) == ["takeoff", "track", "abort"]
