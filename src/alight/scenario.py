@@ -159,6 +159,8 @@ class TouchdownSpec(_Strict):
     """An impact is evidence of contact for this long (s)."""
     range_floor_m: PositiveFloat | None = None
     """A valid range reading below this is at the floor (m)."""
+    airborne_range_m: PositiveFloat | None = None
+    """A valid range reading above this vetoes ground contact (m)."""
     ground_contact_s: PositiveFloat | None = None
     """Ground contact held this long before the thrust spools down (s)."""
     spool_down_s: PositiveFloat | None = None

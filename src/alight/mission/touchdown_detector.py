@@ -11,7 +11,8 @@ each a condition held for a time) in three states:
     estimate's vertical velocity when there is one) **and** evidence of a surface under the feet (an
     impact on the accelerometer within the last ``impact_memory_s``, or the range finder at its floor:
     a valid reading below ``range_floor_m`` or the sensor's "too close" report, ``-inf`` in ROS REP 117),
-    held for ``ground_contact_s``.
+    unless a valid range reading above ``airborne_range_m`` says the vehicle is in the air, held for
+    ``ground_contact_s``.
 ``GROUND_CONTACT``
     the thrust is spooled down (:meth:`thrust_scale`, a ramp to zero over ``spool_down_s``) and the
     attitude levelled (:meth:`level_rates`), as PX4 lowers its thrust and drops the horizontal thrust on
@@ -57,6 +58,9 @@ class TouchdownConfig:
     """An impact is evidence of contact for this long (s)."""
     range_floor_m: float = 0.08
     """A valid range reading (from the feet) below this is "at the floor" (m)."""
+    airborne_range_m: float = 0.5
+    """A valid range reading above this vetoes ground contact (m): the vehicle is plainly in the air,
+    whatever the accelerometer says (a gust's jolt during a slow descent is not an impact)."""
     ground_contact_s: float = 0.15
     """Ground contact must hold this long before the thrust spools down (s)."""
     spool_down_s: float = 0.5
@@ -77,6 +81,7 @@ class TouchdownConfig:
             "impact_mps2",
             "impact_memory_s",
             "range_floor_m",
+            "airborne_range_m",
             "ground_contact_s",
             "spool_down_s",
             "low_thrust_fraction",
@@ -152,7 +157,8 @@ class TouchdownDetector:
         )
         impact = t - self.t_impact <= cfg.impact_memory_s
         still = math.isfinite(v_z_rel_mps) and abs(v_z_rel_mps) < cfg.max_vertical_speed_mps
-        contact = still and (impact or at_floor)
+        in_air = range_m is not None and math.isfinite(range_m) and range_m > cfg.airborne_range_m
+        contact = still and (impact or at_floor) and not in_air
         if not contact:
             self._contact_since = self._spool_t0 = self._low_since = None
             self.state = TouchdownState.AIRBORNE
