@@ -154,6 +154,9 @@ def test_range_to_pad_and_to_ground():
     assert blind.config.min_range_m == 0.2
     assert blind.measure(np.array([5.0, 0.0, 0.7]), Q_LEVEL, pad, 1.5) == -math.inf
     assert blind.measure(np.array([5.0, 0.0, 0.79]), Q_LEVEL, pad, 1.5) == -math.inf
+    # standing on the pad, the feet (and the sensor) pressed a millimetre into it: still the pad, at 0
+    assert rf.measure(np.array([5.0, 0.0, 0.599]), Q_LEVEL, pad, 1.5) == pytest.approx(0.0)
+    assert blind.measure(np.array([5.0, 0.0, 0.599]), Q_LEVEL, pad, 1.5) == -math.inf
     assert blind.measure(np.array([5.0, 0.0, 0.9]), Q_LEVEL, pad, 1.5) == pytest.approx(0.3)
 
 

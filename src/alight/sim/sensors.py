@@ -442,6 +442,10 @@ class RangeFinderConfig:
             raise ValueError("min_range_m must be below max_range_m")
 
 
+PAD_THICKNESS_M = 0.05
+"""Thickness of the pad (m): a ray starting less than this below its surface, over it, hits it at 0."""
+
+
 @njit(cache=True)
 def range_to_surface(
     o_W: FloatArray, d_W: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
@@ -453,8 +457,10 @@ def range_to_surface(
     if dz >= 0.0:
         return math.inf
     h = p_WP[2]
-    if o_W[2] >= h:
-        lam = (o_W[2] - h) / -dz
+    # a sensor at the feet of a vehicle standing on the pad sits a millimetre into it (the contact
+    # model's compression): within the pad's thickness it still sees the pad, at range 0
+    if o_W[2] >= h - PAD_THICKNESS_M:
+        lam = max(o_W[2] - h, 0.0) / -dz
         hx = o_W[0] + lam * d_W[0] - p_WP[0]
         hy = o_W[1] + lam * d_W[1] - p_WP[1]
         c, s = math.cos(yaw), math.sin(yaw)
