@@ -333,8 +333,10 @@ def pack_contact_params(
     deck_depth_m: float = 0.15,
 ) -> FloatArray:
     """The contact model's parameters as the flat array the kernels read, shape (N_CP,); see ``CP_*``.
-    Defaults: a stiff, well-damped skid (critical damping ratio 0.25 per foot), rubber-on-plastic
-    friction 0.6."""
+    Defaults: a stiff skid with damping ratio 0.5 (1 kg on four feet: restitution ~0.16, so a 0.4 m/s
+    touchdown with hover thrust still on rebounds at ~0.07 m/s and hops a few centimetres until the
+    thrust drops: the bounces ``result.json`` counts), rubber-on-plastic friction 0.6.
+    """
     values = (stiffness_N_per_m, damping_Ns_per_m, friction, slip_speed_mps, gear_half_width_m, deck_depth_m)
     if not all(math.isfinite(v) and v >= 0.0 for v in values) or slip_speed_mps <= 0.0:
         raise ValueError("contact parameters must be finite and >= 0, slip speed > 0")
