@@ -159,6 +159,8 @@ class TouchdownSpec(_Strict):
     """An impact is evidence of contact for this long (s)."""
     range_floor_m: PositiveFloat | None = None
     """A valid range reading below this is at the floor (m)."""
+    held_thrust_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = None
+    """Also contact evidence: thrust below this fraction of hover without sinking."""
     airborne_range_m: PositiveFloat | None = None
     """A valid range reading above this vetoes ground contact (m)."""
     ground_contact_s: PositiveFloat | None = None

@@ -92,6 +92,13 @@ def test_an_old_impact_is_forgotten():
     assert _run(det, CFG.impact_memory_s + 0.1, 2.0, range_m=None)[0] is TouchdownState.AIRBORNE
 
 
+def test_low_thrust_without_sinking_is_a_contact():
+    # a touchdown too soft for the accelerometer: the position loop commands 0.7 hover and nothing sinks
+    det = TouchdownDetector(CFG)
+    state, _ = _run(det, 0.0, 1.5, range_m=-math.inf, thrust=0.7 * CFG.hover_thrust_N)
+    assert state is TouchdownState.LANDED and det.reason == "held up"
+
+
 def test_high_thrust_after_contact_does_not_land():
     det = TouchdownDetector(CFG)
     det.on_imu(0.0, G * 3.0)
@@ -116,6 +123,8 @@ def test_bad_config_raises(name):
         TouchdownConfig(**{name: 0.0})
     with pytest.raises(ValueError, match="low_thrust_fraction"):
         TouchdownConfig(low_thrust_fraction=1.0)
+    with pytest.raises(ValueError, match="held_thrust_fraction"):
+        TouchdownConfig(held_thrust_fraction=1.0)
 
 
 def test_level_rates_turn_the_body_upright_without_yaw():

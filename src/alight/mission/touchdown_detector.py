@@ -9,9 +9,9 @@ each a condition held for a time) in three states:
 ``AIRBORNE``
     until *ground contact*: no vertical motion relative to the platform (ego estimate, and the platform
     estimate's vertical velocity when there is one) **and** evidence of a surface under the feet (an
-    impact on the accelerometer within the last ``impact_memory_s``, or a valid range reading below
-    ``range_floor_m``: with a blind zone (the sensor's "too close", ``-inf`` in ROS REP 117) that leaves
-    the impact),
+    impact on the accelerometer within the last ``impact_memory_s``, a valid range reading below
+    ``range_floor_m`` (not the sensor's "too close", ``-inf`` in ROS REP 117), or a commanded thrust
+    below ``held_thrust_fraction`` of hover that does not make the vehicle sink),
     unless a valid range reading above ``airborne_range_m`` says the vehicle is in the air, held for
     ``ground_contact_s``.
 ``GROUND_CONTACT``
@@ -59,6 +59,11 @@ class TouchdownConfig:
     """An impact is evidence of contact for this long (s)."""
     range_floor_m: float = 0.08
     """A valid range reading (from the feet) below this is "at the floor" (m)."""
+    held_thrust_fraction: float = 0.8
+    """Also evidence of a surface: the commanded thrust below this fraction of hover with no vertical
+    motion (PX4's low-throttle test: in the air that thrust would sink the vehicle at 2 m/s^2; something
+    holds it up). It finds the touchdown whose impact was too soft to see (kim_kaist's 0.1 m/s descent:
+    the descent reference keeps going below the deck, so the position loop lowers the thrust)."""
     airborne_range_m: float = 0.5
     """A valid range reading above this vetoes ground contact (m): the vehicle is plainly in the air,
     whatever the accelerometer says (a gust's jolt during a slow descent is not an impact)."""
@@ -82,6 +87,7 @@ class TouchdownConfig:
             "impact_mps2",
             "impact_memory_s",
             "range_floor_m",
+            "held_thrust_fraction",
             "airborne_range_m",
             "ground_contact_s",
             "spool_down_s",
@@ -92,8 +98,8 @@ class TouchdownConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"touchdown.{name} must be positive and finite, got {v}")
-        if self.low_thrust_fraction >= 1.0:
-            raise ValueError("touchdown.low_thrust_fraction must be below 1")
+        if self.low_thrust_fraction >= 1.0 or self.held_thrust_fraction >= 1.0:
+            raise ValueError("touchdown.low_thrust_fraction and held_thrust_fraction must be below 1")
 
 
 class TouchdownDetector:
@@ -162,7 +168,8 @@ class TouchdownDetector:
         impact = t - self.t_impact <= cfg.impact_memory_s
         still = math.isfinite(v_z_rel_mps) and abs(v_z_rel_mps) < cfg.max_vertical_speed_mps
         in_air = range_m is not None and math.isfinite(range_m) and range_m > cfg.airborne_range_m
-        contact = still and (impact or at_floor) and not in_air
+        held = thrust_N < cfg.held_thrust_fraction * cfg.hover_thrust_N
+        contact = still and (impact or at_floor or held) and not in_air
         if not contact:
             self._contact_since = self._spool_t0 = self._low_since = None
             self.state = TouchdownState.AIRBORNE
@@ -179,7 +186,7 @@ class TouchdownDetector:
                 if t - self._low_since >= cfg.landed_s:
                     self.state = TouchdownState.LANDED
                     self.t_landed = t
-                    self.reason = "impact" if impact else "range at floor"
+                    self.reason = "impact" if impact else ("range at floor" if at_floor else "held up")
             else:
                 self._low_since = None
         return self.state
