@@ -359,6 +359,50 @@ class SearchArea(_Strict):
         return self
 
 
+class TouchdownSpec(_Strict):
+    """The onboard land detector (``alight.mission.touchdown_detector.TouchdownConfig``); None keeps the
+    block's default."""
+
+    max_vertical_speed_mps: PositiveFloat | None = None
+    """Ground contact needs |v_z| relative to the platform below this (m/s)."""
+    impact_mps2: PositiveFloat | None = None
+    """An impact: the accelerometer differs from 1 g by more than this (m/s^2)."""
+    impact_memory_s: PositiveFloat | None = None
+    """An impact is evidence of contact for this long (s)."""
+    range_floor_m: PositiveFloat | None = None
+    """A valid range reading below this is at the floor (m)."""
+    held_thrust_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = None
+    """Also contact evidence: thrust below this fraction of hover without sinking."""
+    airborne_range_m: PositiveFloat | None = None
+    """A valid range reading above this vetoes ground contact (m)."""
+    ground_contact_s: PositiveFloat | None = None
+    """Ground contact held this long before the thrust spools down (s)."""
+    spool_down_s: PositiveFloat | None = None
+    """Ramp of the thrust to zero on ground contact (s)."""
+    low_thrust_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = None
+    """Landed needs the thrust below this fraction of hover ..."""
+    landed_s: PositiveFloat | None = None
+    """... for this long (s)."""
+
+
+class RangeFinderSpec(_Strict):
+    """The downward range finder (TeraRanger One-like), measured from the landing-gear feet."""
+
+    min_range_m: NonNegFloat = 0.2
+    """Blind zone (m): closer than this the sensor reports ``-inf`` (ROS REP 117), as a real
+    TeraRanger One (0.2 m) does; 0 for an ideal sensor."""
+    max_range_m: PositiveFloat = 14.0
+    """Beyond this it reports ``+inf`` (m)."""
+    noise_m: NonNegFloat = 0.02
+    """White noise on the range (m)."""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> RangeFinderSpec:
+        if not self.max_range_m > self.min_range_m:
+            raise ValueError("rangefinder.max_range_m must be above min_range_m")
+        return self
+
+
 class MissionSpec(_Strict):
     takeoff_altitude_m: PositiveFloat | None = None
     """Height of the take-off climb over the take-off point (m); None: the exploration altitude. Climbing
@@ -371,13 +415,52 @@ class MissionSpec(_Strict):
     land_speed_mps: PositiveFloat | None = None
     """Descent speed of the landing ramp (m/s); None: the preset's (0.4, and paper 003's 0.1 for
     ``kim_kaist``)."""
-    motor_cutoff_range_m: PositiveFloat = 0.03
     land_commit_height_m: PositiveFloat = 0.6
     """Below this height above the pad a lost target no longer aborts the descent (m): the camera sees
     the tag's cross down to about 0.3 m, but a moving pad may leave the view in the last half metre."""
     lost_timeout_s: PositiveFloat = 3.0
+    """Tracking coasts on the platform's prediction while the target is unseen this long, then searches
+    around the prediction (s)."""
     max_go_arounds: Annotated[int, Field(ge=0)] = 3
     time_budget_s: PositiveFloat | None = None
+    # -- failsafes relative to the platform (None: the block's default, MissionConfig/GuidanceConfig;
+    # docs/scenarios.md lists them) --
+    takeoff_timeout_s: PositiveFloat | None = None
+    """Abort when the take-off has not reached its hover point after this long (s)."""
+    search_timeout_s: PositiveFloat | None = None
+    """The search around the predicted platform lasts this long before the whole area is explored (s)."""
+    search_speed_uncertainty_mps: NonNegFloat | None = None
+    """Growth of the search radius per second since the last sighting (m/s)."""
+    max_target_losses: Annotated[int, Field(ge=0)] | None = None
+    """Abort when the target is lost (TRACK -> SEARCH) more often than this."""
+    land_position_tolerance_m: PositiveFloat | None = None
+    """Descent gate: horizontal offset to the pad below which the landing starts (m)."""
+    land_velocity_tolerance_mps: PositiveFloat | None = None
+    """Descent gate: relative horizontal velocity below which the landing starts (m/s)."""
+    max_estimate_age_s: PositiveFloat | None = None
+    """Descent gate: the last measurement must be younger than this to start or continue descending (s)."""
+    land_max_position_std_m: PositiveFloat | None = None
+    """Descent gate (estimator consistency): the platform estimate's horizontal standard deviation must
+    be below this to start or continue descending (m)."""
+    land_hold_offset_m: PositiveFloat | None = None
+    """The descent holds its height while the offset exceeds this (m)."""
+    land_hold_rel_speed_mps: PositiveFloat | None = None
+    """The descent holds its height while the relative speed exceeds this (m/s)."""
+    land_abort_offset_m: PositiveFloat | None = None
+    """Go-around when the offset exceeds this above the commit height (m)."""
+    land_abort_rel_speed_mps: PositiveFloat | None = None
+    """Go-around when the relative speed exceeds this above the commit height (m/s)."""
+    land_lost_timeout_s: PositiveFloat | None = None
+    """Go-around when the target is unseen this long above the commit height (s)."""
+    land_abort_position_std_m: PositiveFloat | None = None
+    """Go-around when the estimate's horizontal standard deviation exceeds this (m)."""
+    land_hold_timeout_s: PositiveFloat | None = None
+    """Go-around when the descent has held its height this long (s)."""
+    final_action: Literal["hover", "return", "land_in_place"] | None = None
+    """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
+    land in place."""
+    touchdown: TouchdownSpec = Field(default_factory=TouchdownSpec)
+    """The onboard land detector."""
     search_pattern: Literal["spiral", "lawnmower"] = "spiral"
     """Coverage of the search area: an outward square spiral from the take-off point, or paper 000's
     generic waypoint coverage as a lawnmower from the nearest corner."""
@@ -460,10 +543,24 @@ class EnergySpec(_Strict):
 
 
 class ContactSpec(_Strict):
+    """How the simulator judges a landing (ground truth) and its contact model of the feet."""
+
     gear_half_width_m: NonNegFloat = 0.2
+    """Half the landing gear's footprint: the feet sit at (+-w, +-w) under the body, and the centre must
+    stay this far inside the pad's edges (m)."""
     max_vertical_speed_mps: PositiveFloat = 1.0
     max_horizontal_speed_mps: PositiveFloat = 0.75
     max_tilt_deg: PositiveFloat = 25.0
+    settle_s: PositiveFloat = 2.0
+    """After the motors stop, the vehicle must still be on the pad (or, after an abort's landing, where
+    it landed) this long later to count as landed (s); sliding off, tipping over or a bounce onto the
+    ground in that time is a crash."""
+    stiffness_N_per_m: PositiveFloat = 2500.0
+    """Normal stiffness of each foot (N/m)."""
+    damping_Ns_per_m: NonNegFloat = 25.0
+    """Normal damping of each foot (N s/m)."""
+    friction: NonNegFloat = 0.6
+    """Coulomb friction coefficient of the feet on the deck and the ground."""
 
 
 class Scenario(_Strict):
@@ -483,6 +580,7 @@ class Scenario(_Strict):
     estimator: EstimatorSpec = Field(default_factory=EstimatorSpec)
     controller: ControllerSpec = Field(default_factory=ControllerSpec)
     contact: ContactSpec = Field(default_factory=ContactSpec)
+    rangefinder: RangeFinderSpec = Field(default_factory=RangeFinderSpec)
     energy: EnergySpec = Field(default_factory=EnergySpec)
     airframe: str = "f450"
     """The vehicle, for the simulator and the controller alike: a packaged airframe (``f450``, paper

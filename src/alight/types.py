@@ -442,6 +442,7 @@ class Mode(enum.StrEnum):
     TAKEOFF = "takeoff"
     EXPLORE = "explore"
     TRACK = "track"
+    SEARCH = "search"
     LAND = "land"
     GO_AROUND = "go_around"
     LANDED = "landed"

@@ -29,6 +29,11 @@ REQUIRED_RESULT_FIELDS = {
     "platform_estimate_rmse_m",
     "wall_time_s",
     "alight_version",
+    "time_first_contact_s",
+    "time_touchdown_onboard_s",
+    "bounces",
+    "failsafe_events",
+    "abort_reason",
 }
 
 # (path, speed, seed): the paper-000 conditions, seeds picked once at random and frozen.

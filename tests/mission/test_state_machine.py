@@ -1,4 +1,5 @@
-"""The mission state machine: every transition of TRANSITIONS is taken by a test, and nothing else moves."""
+"""The mission state machine: every transition of TRANSITIONS (from, to and event) is taken by a test,
+nothing else moves, and every failsafe records its event."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ import pytest
 from alight.mission.state_machine import TRANSITIONS, Mission, MissionConfig
 from alight.types import EgoState, Mode, PlatformEstimate
 
-CFG = MissionConfig(takeoff_altitude_m=4.0, track_height_m=2.5, time_budget_s=100.0, max_go_arounds=1)
+CFG = MissionConfig(
+    takeoff_altitude_m=4.0, track_height_m=2.5, time_budget_s=100.0, max_go_arounds=1, max_target_losses=1
+)
 PAD_Z = 0.5
 
 
@@ -18,28 +21,32 @@ def ego(p=(0.0, 0.0, 0.1), v=(0.0, 0.0, 0.0), t=0.0) -> EgoState:
     )
 
 
-def target(t: float, p=(5.0, 0.0, PAD_Z), v=(1.0, 0.0, 0.0), age=0.0) -> PlatformEstimate:
+def target(t: float, p=(5.0, 0.0, PAD_Z), v=(1.0, 0.0, 0.0), age=0.0, std=0.1) -> PlatformEstimate:
     return PlatformEstimate(
         t=t,
         p_WP=np.array(p),
         v_WP=np.array(v),
         a_WP=np.zeros(3),
         yaw=0.0,
-        cov_p_WP=np.eye(3) * 0.01,
+        cov_p_WP=np.eye(3) * std**2,
         t_last_measurement=t - age,
     )
 
 
-def started(t: float = 0.0) -> Mission:
-    m = Mission(CFG)
+def kinds(m: Mission) -> list[str]:
+    return [e.kind for e in m.events]
+
+
+def started(t: float = 0.0, cfg: MissionConfig = CFG) -> Mission:
+    m = Mission(cfg)
     m.step(t, ego(), None, None)
     assert m.mode is Mode.TAKEOFF
     return m
 
 
-def at_mode(mode: Mode) -> Mission:
+def at_mode(mode: Mode, cfg: MissionConfig = CFG) -> Mission:
     """A mission brought into ``mode`` through legal transitions."""
-    m = started()
+    m = started(cfg=cfg)
     hover = ego(p=(0, 0, 4.0))
     if mode is Mode.TAKEOFF:
         return m
@@ -63,6 +70,13 @@ def at_mode(mode: Mode) -> Mission:
     raise ValueError(mode)
 
 
+def at_search() -> Mission:
+    m = at_mode(Mode.TRACK)
+    m.step(5.0, ego(p=(5, 0, 4)), target(5.0, age=CFG.lost_timeout_s + 0.1), None)
+    assert m.mode is Mode.SEARCH
+    return m
+
+
 def test_idle_to_takeoff_records_the_takeoff_point() -> None:
     m = Mission(CFG)
     assert m.mode is Mode.IDLE
@@ -81,6 +95,11 @@ def test_takeoff_waits_for_the_hover_point() -> None:
 def test_takeoff_goes_straight_to_track_when_target_seen() -> None:
     m = started()
     assert m.step(1.0, ego(p=(0, 0, 4.1)), target(1.0), None).mode is Mode.TRACK
+    # a hover point below the tracking height: tracking starts once the take-off is done
+    m = started(cfg=MissionConfig(takeoff_altitude_m=2.0, track_height_m=2.5))
+    assert m.step(1.0, ego(p=(0, 0, 1.5)), target(1.0), None).mode is Mode.TAKEOFF
+    status = m.step(2.0, ego(p=(0, 0, 2.1)), target(2.0), None)
+    assert status.mode is Mode.TRACK and status.reason == "hover reached, target already seen"
 
 
 def test_takeoff_tracks_a_target_seen_during_the_climb_once_above_the_tracking_height() -> None:
@@ -115,36 +134,131 @@ def test_track_to_land_needs_position_velocity_and_dwell() -> None:
     assert status.mode is Mode.LAND and status.reason == "above the platform with matched velocity"
 
 
-def test_track_to_explore_when_lost() -> None:
+def test_track_coasts_on_the_prediction_then_searches_and_reacquires() -> None:
     m = at_mode(Mode.TRACK)
-    assert m.step(5.0, ego(p=(0, 0, 4)), target(5.0, age=CFG.lost_timeout_s + 0.1), None).mode is Mode.EXPLORE
+    e = ego(p=(5, 0, 4))
+    # unseen, but within the coast time: still tracking (on the prediction), and the coast is recorded
+    assert m.step(3.0, e, target(3.0, age=CFG.max_estimate_age_s + 0.1), None).mode is Mode.TRACK
+    assert m.step(3.5, e, target(3.5, age=CFG.lost_timeout_s - 0.1), None).mode is Mode.TRACK
+    assert kinds(m) == ["coast"]
+    status = m.step(5.0, e, target(5.0, age=CFG.lost_timeout_s + 0.1), None)
+    assert status.mode is Mode.SEARCH and status.reason == "target lost, coast ended"
+    assert kinds(m) == ["coast", "search"] and m.target_losses == 1
+    # an old measurement does not end the search; a new one does
+    assert m.step(6.0, e, target(6.0, age=CFG.lost_timeout_s + 1.1), None).mode is Mode.SEARCH
+    status = m.step(7.0, e, target(7.0, age=0.05), None)
+    assert status.mode is Mode.TRACK and status.reason == "target reacquired"
+    assert kinds(m)[-1] == "reacquired"
 
 
-def test_land_to_landed_on_range_cutoff() -> None:
+def test_coast_then_sighting_records_reacquisition_without_a_search() -> None:
+    m = at_mode(Mode.TRACK)
+    e = ego(p=(5, 0, 4))
+    m.step(3.0, e, target(3.0, age=CFG.max_estimate_age_s + 0.1), None)
+    m.step(3.1, e, target(3.1), None)
+    assert m.mode is Mode.TRACK and kinds(m) == ["coast", "reacquired"]
+
+
+def test_search_times_out_into_exploration() -> None:
+    m = at_search()
+    e = ego(p=(5, 0, 8))
+    assert m.step(5.0 + CFG.search_timeout_s - 0.1, e, target(6.0, age=9.0), None).mode is Mode.SEARCH
+    status = m.step(5.0 + CFG.search_timeout_s + 0.1, e, target(26.0, age=25.0), None)
+    assert status.mode is Mode.EXPLORE and status.reason == "search around the prediction timed out"
+    assert kinds(m)[-1] == "explore"
+
+
+def test_too_many_target_losses_abort() -> None:
+    m = at_search()  # loss 1 of max_target_losses = 1
+    m.step(7.0, ego(p=(5, 0, 4)), target(7.0), None)
+    assert m.mode is Mode.TRACK
+    status = m.step(12.0, ego(p=(5, 0, 4)), target(12.0, age=CFG.lost_timeout_s + 0.1), None)
+    assert status.mode is Mode.ABORT and status.reason == "too many target losses"
+    assert m.abort_reason == "too many target losses" and "retry_limit" in kinds(m)
+
+
+def test_takeoff_timeout_aborts_with_the_final_action() -> None:
+    m = started()
+    assert m.step(CFG.takeoff_timeout_s - 1.0, ego(p=(0, 0, 1.0)), None, None).mode is Mode.TAKEOFF
+    status = m.step(CFG.takeoff_timeout_s + 0.1, ego(p=(0, 0, 1.0)), None, None)
+    assert status.mode is Mode.ABORT and status.reason == "take-off timeout"
+    assert kinds(m) == ["takeoff_timeout", "abort", "final_action"] and m.abort_reason == "take-off timeout"
+
+
+def test_track_to_land_needs_every_descent_gate() -> None:
+    good = ego(p=(5.0, 0.1, 3.0), v=(1.1, 0, 0))
+    for bad_target, bad_ego in (
+        (target(2.0), ego(p=(5.0 + CFG.land_position_tolerance_m + 0.05, 0, 3.0), v=(1.0, 0, 0))),
+        (target(2.0), ego(p=(5.0, 0, 3.0), v=(1.0 + CFG.land_velocity_tolerance_mps + 0.05, 0, 0))),
+        (target(2.0, age=CFG.max_estimate_age_s + 0.05), good),
+        (target(2.0, std=CFG.land_max_position_std_m + 0.05), good),
+    ):
+        m = at_mode(Mode.TRACK)
+        for k in range(10):
+            t = 2.0 + 0.1 * k
+            tg = bad_target
+            tg = target(t, age=t - tg.t_last_measurement, std=float(np.sqrt(tg.cov_p_WP[0, 0])))
+            assert m.step(t, bad_ego, tg, None).mode is Mode.TRACK
+
+
+def test_land_to_landed_on_the_onboard_touchdown() -> None:
     m = at_mode(Mode.LAND)
-    low = ego(p=(5.0, 0.0, 0.7), v=(1.0, 0, -0.4))
-    assert m.step(3.0, low, target(3.0), CFG.motor_cutoff_range_m + 0.05).mode is Mode.LAND
-    assert m.step(3.1, low, target(3.1), None).mode is Mode.LAND  # no reading: keep descending
-    assert m.step(3.2, low, target(3.2), CFG.motor_cutoff_range_m / 2).mode is Mode.LANDED
+    low = ego(p=(5.0, 0.0, 0.65), v=(1.0, 0, -0.4))
+    # the range finder's reading is no longer what stops the motors
+    assert m.step(3.0, low, target(3.0), 0.0).mode is Mode.LAND
+    status = m.step(3.2, low, target(3.2), None, touchdown=True)
+    assert status.mode is Mode.LANDED and status.reason == "touchdown detected on board"
     # LANDED is final
     assert m.step(9.0, ego(p=(0, 0, 5)), None, None).mode is Mode.LANDED
 
 
-def test_land_to_go_around_when_target_lost_or_off_pad() -> None:
+@pytest.mark.parametrize(
+    ("kw_ego", "kw_target", "reason"),
+    [
+        ({}, {"age": CFG.land_lost_timeout_s + 0.1}, "target lost during the descent"),
+        ({"p": (5.0 + CFG.land_abort_offset_m + 0.1, 0, 3.0)}, {}, "off the pad during the descent"),
+        (
+            {"v": (1.0 + CFG.land_abort_rel_speed_mps + 0.1, 0, 0)},
+            {},
+            "relative velocity too large during the descent",
+        ),
+        ({}, {"std": CFG.land_abort_position_std_m + 0.1}, "estimate too uncertain during the descent"),
+    ],
+)
+def test_land_gates_go_around_above_the_commit_height_only(kw_ego, kw_target, reason) -> None:
+    high = dict(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5), v=(1.0, 0, 0))
     m = at_mode(Mode.LAND)
-    high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5))
-    assert m.step(3.0, high, target(3.0, age=CFG.land_lost_timeout_s + 0.1), None).mode is Mode.GO_AROUND
-    # below the commit height a lost target does not stop the descent (the camera cannot see the pad)
+    status = m.step(3.0, ego(**{**high, **kw_ego}), target(3.0, **kw_target), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == reason
+    assert m.events[-1].kind == "go_around" and m.events[-1].reason == reason
+    # below the commit height the descent continues on the prediction, whatever the gates say
     m = at_mode(Mode.LAND)
-    low = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.2))
-    assert m.step(3.0, low, target(3.0, age=CFG.land_lost_timeout_s + 0.1), None).mode is Mode.LAND
+    p = high["p"]
+    low = dict(
+        p=(kw_ego.get("p", p)[0], 0, PAD_Z + CFG.land_commit_height_m - 0.2), v=kw_ego.get("v", high["v"])
+    )
+    assert m.step(3.0, ego(**low), target(3.0, **kw_target), None).mode is Mode.LAND
+    assert not m.descent_hold
+
+
+def test_land_without_estimate_goes_around() -> None:
     m = at_mode(Mode.LAND)
-    far = ego(p=(5.0 + CFG.land_abort_offset_m + 0.1, 0, PAD_Z + CFG.land_abort_min_height_m + 0.5))
-    assert m.step(3.0, far, target(3.0), None).mode is Mode.GO_AROUND
-    # close to the pad the descent commits even when off-centre
+    status = m.step(3.0, ego(p=(5, 0, 1.0)), None, None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "target lost during the descent"
+
+
+def test_a_marginal_gate_holds_the_descent_then_goes_around() -> None:
     m = at_mode(Mode.LAND)
-    low_far = ego(p=(5.0 + CFG.land_abort_offset_m + 0.1, 0, PAD_Z + CFG.land_abort_min_height_m / 2))
-    assert m.step(3.0, low_far, target(3.0), None).mode is Mode.LAND
+    high = PAD_Z + CFG.land_commit_height_m + 1.0
+    marginal = ego(p=(5.0 + CFG.land_hold_offset_m + 0.05, 0, high), v=(1.0, 0, 0))
+    good = ego(p=(5.0, 0, high), v=(1.0, 0, 0))
+    assert m.step(3.0, marginal, target(3.0), None).mode is Mode.LAND and m.descent_hold
+    assert m.events[-1].kind == "descent_hold"
+    assert m.step(3.5, good, target(3.5), None).mode is Mode.LAND and not m.descent_hold  # resumes
+    m.step(4.0, marginal, target(4.0), None)
+    assert m.step(4.0 + CFG.land_hold_timeout_s - 0.1, marginal, target(6.8), None).mode is Mode.LAND
+    status = m.step(4.0 + CFG.land_hold_timeout_s + 0.1, marginal, target(7.2), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "descent held too long"
 
 
 def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> None:
@@ -159,49 +273,114 @@ def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> Non
     assert m.mode is Mode.LAND
     m.step(7.0, above, target(7.0, age=5.0), None)
     assert m.mode is Mode.GO_AROUND and m.go_arounds == 2
-    assert m.step(7.1, above, target(7.1), None).mode is Mode.ABORT
+    status = m.step(7.1, above, target(7.1), None)
+    assert status.mode is Mode.ABORT and status.reason == "too many go-arounds"
+    assert "retry_limit" in kinds(m)
     assert m.step(50.0, above, target(50.0), None).mode is Mode.ABORT  # final
 
 
-@pytest.mark.parametrize("mode", [Mode.EXPLORE, Mode.TRACK, Mode.LAND])
+def test_go_around_without_an_estimate_waits_for_the_exploration_altitude() -> None:
+    m = at_mode(Mode.GO_AROUND)
+    assert m.step(4.0, ego(p=(5, 0, 5.0)), None, None).mode is Mode.GO_AROUND
+    assert m.step(5.0, ego(p=(5, 0, CFG.explore_altitude_m)), None, None).mode is Mode.TRACK
+
+
+@pytest.mark.parametrize("mode", [Mode.EXPLORE, Mode.TRACK, Mode.LAND, Mode.GO_AROUND, Mode.SEARCH])
 def test_time_budget_aborts(mode: Mode) -> None:
-    m = at_mode(mode)
+    m = at_search() if mode is Mode.SEARCH else at_mode(mode)
     late = CFG.time_budget_s + 1.0
-    assert m.step(late, ego(p=(5.0, 0.0, 3.0), v=(1.0, 0, 0)), target(late), None).mode is Mode.ABORT
+    e = ego(p=(5.0, 0.0, 3.0), v=(1.0, 0, 0))
+    status = m.step(late, e, target(late, age=0.0 if mode is not Mode.SEARCH else 50.0), None)
+    assert status.mode is Mode.ABORT and status.reason == "time budget spent"
+    assert m.abort_reason == "time budget spent"
+
+
+def test_final_action_hover_climbs_holds_and_completes() -> None:
+    m = at_mode(Mode.TRACK, MissionConfig(time_budget_s=10.0, explore_altitude_m=12.0))
+    m.step(11.0, ego(p=(5, 0, 3.0)), target(11.0), None)
+    assert m.mode is Mode.ABORT and m.abort_phase == "climb"
+    np.testing.assert_allclose(m.abort_goal_W, [5, 0, 12.0])
+    m.step(15.0, ego(p=(5, 0, 12.0)), None, None)
+    assert m.abort_phase == "hold" and not m.final_action_complete
+    m.step(16.0, ego(p=(5, 0, 12.0)), None, None)
+    m.step(16.0 + m.config.abort_hover_s, ego(p=(5, 0, 12.0)), None, None)
+    assert m.final_action_complete and m.mode is Mode.ABORT
+    assert kinds(m)[-1] == "final_action_complete"
+
+
+def test_final_action_return_flies_home_then_lands() -> None:
+    cfg = MissionConfig(time_budget_s=10.0, final_action="return")
+    m = at_mode(Mode.TRACK, cfg)
+    m.step(11.0, ego(p=(5, 0, 3.0)), target(11.0), None)
+    assert m.abort_phase == "transit"
+    np.testing.assert_allclose(m.abort_goal_W, [0, 0, 12.0])
+    m.step(12.0, ego(p=(2, 0, 12.0), v=(2, 0, 0)), None, None)
+    assert m.abort_phase == "transit"
+    m.step(20.0, ego(p=(0.1, 0, 12.0)), None, None)
+    assert m.abort_phase == "descend" and m.abort_goal_W[2] == pytest.approx(0.1)  # the take-off height
+    m.step(30.0, ego(p=(0.1, 0, 0.1)), None, None)
+    assert not m.final_action_complete
+    m.step(31.0, ego(p=(0.1, 0, 0.1)), None, None, touchdown=True)
+    assert m.final_action_complete and m.mode is Mode.ABORT
+
+
+def test_final_action_land_in_place_descends_at_once() -> None:
+    m = at_mode(Mode.TRACK, MissionConfig(time_budget_s=10.0, final_action="land_in_place"))
+    m.step(11.0, ego(p=(7, 1, 3.0)), target(11.0), None)
+    assert m.abort_phase == "descend"
+    np.testing.assert_allclose(m.abort_goal_W[:2], [7, 1])
+    m.step(20.0, ego(p=(7, 1, 0.1)), None, None, touchdown=True)
+    assert m.final_action_complete
 
 
 def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
-    """Replays the scenarios above and checks that the transitions they took are exactly the table."""
-    seen: set[tuple[Mode, Mode]] = set()
-    for fn in (
+    """Replays the scenarios above and checks that the transitions they took, with their events, are
+    exactly the table."""
+    seen: set[tuple[Mode, Mode, str]] = set()
+    scenarios = [
         test_idle_to_takeoff_records_the_takeoff_point,
         test_takeoff_waits_for_the_hover_point,
         test_takeoff_goes_straight_to_track_when_target_seen,
         test_takeoff_tracks_a_target_seen_during_the_climb_once_above_the_tracking_height,
+        test_takeoff_timeout_aborts_with_the_final_action,
         test_explore_to_track_on_detection_only_when_fresh,
         test_track_to_land_needs_position_velocity_and_dwell,
-        test_track_to_explore_when_lost,
-        test_land_to_landed_on_range_cutoff,
-        test_land_to_go_around_when_target_lost_or_off_pad,
+        test_track_to_land_needs_every_descent_gate,
+        test_track_coasts_on_the_prediction_then_searches_and_reacquires,
+        test_coast_then_sighting_records_reacquisition_without_a_search,
+        test_search_times_out_into_exploration,
+        test_too_many_target_losses_abort,
+        test_land_to_landed_on_the_onboard_touchdown,
+        test_land_without_estimate_goes_around,
+        test_a_marginal_gate_holds_the_descent_then_goes_around,
         test_go_around_returns_to_track_at_height_and_aborts_after_too_many,
-    ):
-        original = Mission._go
-        record: list[tuple[Mode, Mode]] = []
+        test_go_around_without_an_estimate_waits_for_the_exploration_altitude,
+        test_final_action_hover_climbs_holds_and_completes,
+        test_final_action_return_flies_home_then_lands,
+        test_final_action_land_in_place_descends_at_once,
+    ]
+    calls = [(fn, ()) for fn in scenarios]
+    calls += [
+        (test_time_budget_aborts, (mode,))
+        for mode in (Mode.EXPLORE, Mode.TRACK, Mode.LAND, Mode.GO_AROUND, Mode.SEARCH)
+    ]
+    for args in test_land_gates_go_around_above_the_commit_height_only.pytestmark[0].args[1]:  # type: ignore[attr-defined]
+        calls.append((test_land_gates_go_around_above_the_commit_height_only, tuple(args)))
+    original = Mission._go
+    record: list[tuple[Mode, Mode, str]] = []
 
-        def spy(self: Mission, t: float, mode: Mode, reason: str, _orig=original, _rec=record) -> None:
-            _rec.append((self.mode, mode))
-            _orig(self, t, mode, reason)
+    def spy(self: Mission, t: float, mode: Mode, reason: str) -> None:
+        record.append((self.mode, mode, reason))
+        original(self, t, mode, reason)
 
-        Mission._go = spy  # type: ignore[method-assign]
-        try:
-            fn()
-        finally:
-            Mission._go = original  # type: ignore[method-assign]
-        seen.update(record)
-    for mode in (Mode.EXPLORE, Mode.TRACK, Mode.LAND):
-        seen.add((mode, Mode.ABORT))  # covered by test_time_budget_aborts
-    table = {(a, b) for a, b, _ in TRANSITIONS}
-    assert seen == table
+    Mission._go = spy  # type: ignore[method-assign]
+    try:
+        for fn, args in calls:
+            fn(*args)  # type: ignore[operator]
+    finally:
+        Mission._go = original  # type: ignore[method-assign]
+    seen.update(record)
+    assert seen == set(TRANSITIONS)
 
 
 def test_bad_config_raises() -> None:
@@ -209,3 +388,7 @@ def test_bad_config_raises() -> None:
         MissionConfig(land_speed_mps=0.0)
     with pytest.raises(ValueError, match="max_go_arounds"):
         MissionConfig(max_go_arounds=-1)
+    with pytest.raises(ValueError, match="final_action"):
+        MissionConfig(final_action="explode")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="takeoff_timeout_s"):
+        MissionConfig(takeoff_timeout_s=0.0)

@@ -187,20 +187,33 @@ def test_step_many_equals_repeated_step_and_input_is_untouched():
     np.testing.assert_array_equal(x0, keep)
 
 
-def test_rest_on_surface_holds_on_ground_and_lets_go_with_enough_thrust():
+def test_ground_contact_holds_below_weight_and_lets_go_with_enough_thrust():
     af = DEFAULT_AIRFRAME
     par = Q.pack_params()
+    cp = Q.pack_contact_params(af)
+    deck = Q.no_deck()
     x = _state((0, 0, af.gear_height), yaw=1.0)
     u_low = np.full(4, 0.8 * af.weight_N / 4)
-    for _ in range(200):
-        x = Q.rest_on_surface(Q.step(x, u_low, Z3, Z3, par, 0.001), 0.0, Z3, af.gear_height)
-    assert x[2] == pytest.approx(af.gear_height)
-    np.testing.assert_allclose(x[Q.SL_V], 0.0)
+    for _ in range(2000):
+        x = Q.step_contact(x, u_low, Z3, Z3, par, 0.001, deck, 0.0, cp)
+    # the feet carry the fifth of the weight the rotors do not: 0.2 m g / (4 k) of compression
+    assert x[2] == pytest.approx(af.gear_height - 0.2 * af.weight_N / (4 * cp[Q.CP_K]), abs=1e-5)
+    np.testing.assert_allclose(x[Q.SL_V], 0.0, atol=1e-6)
     assert quat_to_rotmat(x[Q.SL_Q])[1, 0] == pytest.approx(math.sin(1.0))  # heading kept
     u_high = np.full(4, 1.3 * af.weight_N / 4)
     for _ in range(300):
-        x = Q.rest_on_surface(Q.step(x, u_high, Z3, Z3, par, 0.001), 0.0, Z3, af.gear_height)
+        x = Q.step_contact(x, u_high, Z3, Z3, par, 0.001, deck, 0.0, cp)
     assert x[2] > af.gear_height + 0.01 and x[5] > 0.0
+
+
+def test_step_contact_equals_step_away_from_every_surface():
+    par = Q.pack_params()
+    x0 = _state((0, 0, 3), thrust=2.0, w=(0.1, 0.2, 0.3))
+    u = np.array([2.0, 3.0, 2.5, 2.2])
+    np.testing.assert_array_equal(
+        Q.step_contact(x0, u, Z3, Z3, par, 0.001, Q.no_deck(), 0.0, Q.pack_contact_params()),
+        Q.step(x0, u, Z3, Z3, par, 0.001),
+    )
 
 
 def test_quadrotor_sim_shell():

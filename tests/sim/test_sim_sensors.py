@@ -139,7 +139,7 @@ def test_odometry_drift_is_a_rotated_and_offset_frame():
 
 
 def test_range_to_pad_and_to_ground():
-    rf = RangeFinder(RangeFinderConfig(noise_std_m=0.0), np.random.default_rng(9))
+    rf = RangeFinder(RangeFinderConfig(noise_std_m=0.0, min_range_m=0.0), np.random.default_rng(9))
     pad = _pad(x=5.0, y=0.0, h=0.5)
     # over the pad: from the feet (0.1 m under the body) down to the pad surface
     assert rf.measure(np.array([5.3, 0.2, 3.0]), Q_LEVEL, pad, 1.5) == pytest.approx(3.0 - 0.1 - 0.5)
@@ -149,8 +149,14 @@ def test_range_to_pad_and_to_ground():
     assert rf.measure(np.array([7.0, 0.0, 0.3]), Q_LEVEL, pad, 1.5) == pytest.approx(0.2)
     # out of range (REP 117)
     assert rf.measure(np.array([0.0, 0.0, 20.0]), Q_LEVEL, pad, 1.5) == math.inf
-    blind = RangeFinder(RangeFinderConfig(noise_std_m=0.0, min_range_m=0.2), np.random.default_rng(9))
+    # the default is the TeraRanger One's 0.2 m blind zone: closer, it reports -inf, never a number
+    blind = RangeFinder(RangeFinderConfig(noise_std_m=0.0), np.random.default_rng(9))
+    assert blind.config.min_range_m == 0.2
     assert blind.measure(np.array([5.0, 0.0, 0.7]), Q_LEVEL, pad, 1.5) == -math.inf
+    assert blind.measure(np.array([5.0, 0.0, 0.79]), Q_LEVEL, pad, 1.5) == -math.inf
+    # standing on the pad, the feet (and the sensor) pressed a millimetre into it: still the pad, at 0
+    assert rf.measure(np.array([5.0, 0.0, 0.599]), Q_LEVEL, pad, 1.5) == pytest.approx(0.0)
+    assert blind.measure(np.array([5.0, 0.0, 0.599]), Q_LEVEL, pad, 1.5) == -math.inf
     assert blind.measure(np.array([5.0, 0.0, 0.9]), Q_LEVEL, pad, 1.5) == pytest.approx(0.3)
 
 

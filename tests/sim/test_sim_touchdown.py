@@ -97,3 +97,48 @@ def test_custom_limits_and_validation():
     assert judge_contact(p, np.array([0.0, 0.0, -1.5]), I3, pad, PAD, GEAR, lim).outcome is Outcome.LANDED
     with pytest.raises(ValueError):
         ContactLimits(max_tilt_deg=-1.0)
+
+
+def test_the_contact_model_names_the_surface_a_tilted_foot_touches():
+    from alight.sim.touchdown import judge_contact
+
+    # the centre's gear height is still above the pad, but the contact model says a foot touches it
+    pad = _pad()
+    p = np.array([pad.p_WP[0], pad.p_WP[1], H + GEAR + 0.02])
+    assert judge_contact(p, np.array([0.0, 0.0, -0.3]), I3, pad, PAD, GEAR, LIM) is None
+    c = judge_contact(p, np.array([0.0, 0.0, -0.3]), I3, pad, PAD, GEAR, LIM, surface="pad")
+    assert c is not None and c.outcome is Outcome.LANDED and c.surface == "pad"
+
+
+def test_ground_is_a_safe_surface_only_for_an_abort_landing():
+    from alight.sim.touchdown import judge_contact
+
+    p = np.array([0.0, 0.0, GEAR])
+    far = _pad(xy=(30.0, 0.0))
+    assert judge_contact(p, np.array([0, 0, -0.3]), I3, far, PAD, GEAR, LIM).reason == "ground"
+    ok = judge_contact(p, np.array([0, 0, -0.3]), I3, far, PAD, GEAR, LIM, ground_ok=True)
+    assert ok.outcome is Outcome.LANDED and ok.surface == "ground"
+    hard = judge_contact(p, np.array([0, 0, -1.5]), I3, far, PAD, GEAR, LIM, ground_ok=True)
+    assert hard.outcome is Outcome.CRASHED and hard.reason == "vertical_speed"
+
+
+def test_settled_judgement():
+    from alight.sim.touchdown import judge_settled
+
+    pad = _pad()
+    on = np.array([pad.p_WP[0] + 0.1, pad.p_WP[1], H + GEAR])
+    assert judge_settled(on, I3, pad, PAD, LIM, 4, 0) == (Outcome.LANDED, "")
+    slid = np.array([pad.p_WP[0] + 0.6, pad.p_WP[1], H + GEAR])
+    assert judge_settled(slid, I3, pad, PAD, LIM, 2, 0) == (Outcome.CRASHED, "off_footprint")
+    assert judge_settled(on, I3, pad, PAD, LIM, 0, 4) == (Outcome.CRASHED, "ground,not_on_pad")
+    assert judge_settled(on, I3, pad, PAD, LIM, 0, 0) == (Outcome.CRASHED, "not_on_pad")
+    tipped = Rotation.from_euler("x", math.radians(60)).as_matrix()
+    assert judge_settled(on, tipped, pad, PAD, LIM, 2, 0)[1] == "tipped_over"
+    # an abort's landing: upright on the ground is the safe end
+    assert judge_settled(np.array([0.0, 0.0, GEAR]), I3, pad, PAD, LIM, 0, 4, ground_ok=True) == (
+        Outcome.LANDED,
+        "",
+    )
+    assert judge_settled(np.array([0.0, 0.0, GEAR]), tipped, pad, PAD, LIM, 0, 2, ground_ok=True)[0] is (
+        Outcome.CRASHED
+    )

@@ -30,11 +30,9 @@ from alight.control.rate import pack_low_level_params
 from alight.energy import flight_energy_J
 from alight.evaluation.log import MissionLog
 from alight.evaluation.physics import (
+    IN_DECK,
     IN_F_EXT,
     IN_MOTORS_ON,
-    IN_SUPPORT_V,
-    IN_SUPPORT_Z,
-    IN_SUPPORTED,
     IN_THRUST,
     IN_V_WIND,
     IN_W_CMD,
@@ -45,11 +43,28 @@ from alight.mission.presets import build_preset
 from alight.scenario import Scenario
 from alight.sim.faults import Faults, speed_profile
 from alight.sim.platform import Platform, PlatformConfig
-from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params
+from alight.sim.quadrotor import (
+    CP_K,
+    DK_A,
+    DK_HALF,
+    DK_ON,
+    DK_P,
+    DK_V,
+    DK_YAW,
+    DK_YAW_RATE,
+    IX_F,
+    SL_P,
+    SL_Q,
+    SL_V,
+    SL_W,
+    initial_state,
+    pack_contact_params,
+    pack_params,
+)
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
 from alight.sim.textures import DistractorSpec, make_ground_texture
-from alight.sim.touchdown import Contact, ContactLimits, judge_contact
+from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import (
     TURBULENCE_W20_MPS,
@@ -64,9 +79,9 @@ from alight.types import Mode, Observation, Outcome, quat_to_rotmat
 
 PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
-POST_CONTACT_S = 1.0  # simulated after a landing, with the vehicle resting on the pad
-ABORT_HOLD_S = 2.0  # an aborted mission ends this long after the abort
 WIND_DT = 0.01  # the wind is updated where the physics batches start: at the 100 Hz control ticks
+_LANDING_PHASES = ("descend", "done")  # the final action's phases where touching the ground is its end
+LIFT_OFF_M = 0.005  # feet this far above the surface they touched, touching nothing: a lift-off (bounce)
 FALSE_LOCK_S = 1.0  # tracking or landing on an estimate > 2 pad sizes from the pad this long: a false lock
 
 
@@ -181,7 +196,23 @@ def run_mission(
     wind = _wind(s, rng_wind, airframe)
     imu = Imu(ImuConfig(), rng_imu)
     odometry = Odometry(OdometryConfig(), rng_odo)
-    rangefinder = RangeFinder(RangeFinderConfig(origin_B=(0.0, 0.0, -airframe.gear_height)), rng_range)
+    rf = s.rangefinder
+    rangefinder = RangeFinder(
+        RangeFinderConfig(
+            origin_B=(0.0, 0.0, -airframe.gear_height),
+            min_range_m=rf.min_range_m,
+            max_range_m=rf.max_range_m,
+            noise_std_m=rf.noise_m,
+        ),
+        rng_range,
+    )
+    contact_params = pack_contact_params(
+        airframe,
+        stiffness_N_per_m=s.contact.stiffness_N_per_m,
+        damping_Ns_per_m=s.contact.damping_Ns_per_m,
+        friction=s.contact.friction,
+        gear_half_width_m=s.contact.gear_half_width_m,
+    )
     limits = ContactLimits(
         gear_half_width=s.contact.gear_half_width_m,
         max_vertical_speed_mps=s.contact.max_vertical_speed_mps,
@@ -246,7 +277,10 @@ def run_mission(
 
     sim_params = pack_params(airframe)
     ll_params = pack_low_level_params(airframe, preset.rate_gains)
-    x = initial_state(np.array([0.0, 0.0, airframe.gear_height]), yaw=0.0)
+    # standing on the ground, the feet compressed by the weight
+    x = initial_state(
+        np.array([0.0, 0.0, airframe.gear_height - airframe.weight_N / (4 * contact_params[CP_K])])
+    )
     zero3 = np.zeros(3)
 
     n_sub = round(TICK_DT / PHYSICS_DT)
@@ -262,15 +296,15 @@ def run_mission(
     log = MissionLog() if record else None
     cmd = None
     thrust_N, w_cmd, motors_on = 0.0, zero3, False
-    contact: Contact | None = None
+    contact: Contact | None = None  # the first contact after take-off, judged from the truth
     t_contact: float | None = None
-    supported = True  # standing on the ground before take-off
-    support_z, support_v = 0.0, zero3
     inputs = np.zeros(N_IN)  # what the compiled tick reads; updated in place when something changes
-    inputs[IN_SUPPORTED] = 1.0
+    inputs[IN_DECK + DK_ON] = 1.0
+    inputs[IN_DECK + DK_HALF] = 0.5 * s.platform.pad_size_m
     airborne = False
     t_abort: float | None = None
     outcome: Outcome | None = None
+    settle_reason = ""
     n_ticks = int(round(s.duration_s / TICK_DT))
     # The platform's path does not depend on the flight: its states at every tick, computed at once.
     truths = platform.states(np.arange(n_ticks + 1) * TICK_DT)
@@ -278,9 +312,17 @@ def run_mission(
     windless = isinstance(wind, NoWind)
     f_wind = v_air = zero3
     gear = airframe.gear_height
-    low_z = s.platform.pad_height_m + 0.01 + gear
+    # the lowest a foot can be below the body origin (tilted 25 deg with the feet 0.2 m out), plus 1 cm
+    reach = gear + s.contact.gear_half_width_m * 0.5 + 0.01
+    low_z = s.platform.pad_height_m + reach
     mode = Mode.IDLE
     pad = s.platform.pad_size_m
+    touching = False  # a foot touches the deck or the ground (after take-off)
+    touch_z = 0.0  # height of the surface it touches (m)
+    bounces = 0
+    t_motors_off: float | None = None
+    abort_landing = False  # the final action's descent: a gentle ground contact is its safe end
+    x_prev = x
 
     # Motor thrusts at the log rate, for the flight energy whether or not the mission is recorded.
     motor_t = np.empty(n_ticks // every_log + 1)
@@ -291,55 +333,89 @@ def run_mission(
     off_target_s = 0.0
     k = 0
     t = 0.0
-    batch_xs = batch_imu = np.empty((0, 0))
+    batch_xs = batch_imu = batch_touch = np.empty((0, 0))
     batch_i = batch_n = 0
     for k in range(1, n_ticks + 1):
         if batch_i == batch_n:
             # The physics runs in batches that end where the controller issues its next command (the
-            # inputs are constant in between), cut short where the runner has to act on the state.
+            # inputs are constant in between), cut short where the runner has to judge a first contact.
             if not windless:
                 f_wind = wind.force_W(t, x[SL_P], x[SL_V])
                 v_air = wind.air_velocity_W(t)
                 inputs[IN_F_EXT : IN_F_EXT + 3] = f_wind
                 inputs[IN_V_WIND : IN_V_WIND + 3] = v_air
+            # the deck at the batch's start; the kernel carries it forward with its acceleration and turn
+            inputs[IN_DECK + DK_P : IN_DECK + DK_P + 3] = truth_p[k - 1]
+            inputs[IN_DECK + DK_V : IN_DECK + DK_V + 3] = truth_v[k - 1]
+            inputs[IN_DECK + DK_A : IN_DECK + DK_A + 3] = truths.a_WP[k - 1]
+            inputs[IN_DECK + DK_YAW] = truths.yaw[k - 1]
+            inputs[IN_DECK + DK_YAW_RATE] = truths.yaw_rate[k - 1]
             m = min(every_control - (k - 1) % every_control, n_ticks + 1 - k)
             m = faults.before_imu_batch(k, m, imu)  # an IMU bias step due now; a batch ends before the next
             imu_bias, imu_noise, imu_scale = imu.kernel_inputs_many(m)
-            batch_xs, batch_imu, batch_n = tick_batch(
-                x, inputs, sim_params, ll_params, imu_bias, imu_noise, imu_scale, PHYSICS_DT, n_sub, gear,
-                m, low_z if airborne and contact is None else -math.inf,
+            batch_xs, batch_imu, batch_touch, batch_n = tick_batch(
+                x, inputs, sim_params, ll_params, imu_bias, imu_noise, imu_scale, PHYSICS_DT, n_sub,
+                contact_params, m, low_z if airborne and contact is None else -math.inf,
                 math.inf if airborne else gear + 0.05,
             )  # fmt: skip
             imu.used(batch_n)
             batch_i = 0
+        x_prev = x
         x, imu_out = batch_xs[batch_i], batch_imu[batch_i]
+        on_deck, on_ground = int(batch_touch[batch_i, 0]), int(batch_touch[batch_i, 1])
         batch_i += 1
         t = k * TICK_DT
         p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]
 
         if not airborne and p_WB[2] - gear > 0.05:
-            airborne, supported = True, False
-            inputs[IN_SUPPORTED] = 0.0
-        truth = None
-        if airborne and contact is None and p_WB[2] <= low_z:
+            airborne = True
+        # an abort's descent ends on the ground (or wherever it is): there a touch is its safe end
+        ground_ok = abort_landing and pipeline.mission.abort_phase in _LANDING_PHASES
+        if airborne and (on_deck or on_ground or touching):
+            # Contact bookkeeping from the truth: the first contact is judged (DESIGN.md's limits, on the
+            # approach: speeds and tilt of the tick before the feet touched, before the contact force
+            # acted); every later touchdown after a lift-off is judged again; the ground is a crash
+            # except at the end of an abort's descent.
             truth = truths.at(k)
-            contact = judge_contact(p_WB, v_WB, quat_to_rotmat(q_WB), truth, pad, gear, limits)
-            if contact is not None:
-                t_contact = t
-                if contact.outcome is Outcome.LANDED:
-                    supported, support_z = True, float(truth.p_WP[2])
-                else:
+            if on_deck or on_ground:
+                surface = "ground" if on_ground and not on_deck else "pad"
+                if not touching:
+                    touching = True
+                    touch_z = 0.0 if surface == "ground" else float(truth.p_WP[2])
+                    judged = judge_contact(
+                        p_WB, x_prev[SL_V], quat_to_rotmat(x_prev[SL_Q]), truth, pad, gear, limits,
+                        surface=surface, ground_ok=ground_ok,
+                    )  # fmt: skip
+                    if judged is not None:
+                        if contact is None:
+                            contact, t_contact = judged, t
+                        if judged.outcome is Outcome.CRASHED:
+                            outcome, settle_reason = Outcome.CRASHED, judged.reason
+                            if contact is not judged:
+                                settle_reason = f"after a bounce: {judged.reason}"
+                            break
+                elif on_ground and not ground_ok:
+                    outcome, settle_reason = Outcome.CRASHED, "ground"  # slid or tipped off the deck
                     break
-        if supported and contact is not None:
-            truth = truth or truths.at(k)
-            support_v = truth.v_WP.copy()
-            support_z = float(truth.p_WP[2])
-            motors_on = False
-            inputs[IN_SUPPORTED] = 1.0
-            inputs[IN_SUPPORT_Z] = support_z
-            inputs[IN_SUPPORT_V : IN_SUPPORT_V + 3] = support_v
-            inputs[IN_MOTORS_ON] = 0.0
-        if t_contact is not None and t - t_contact >= POST_CONTACT_S:
+            elif p_WB[2] - gear - touch_z > LIFT_OFF_M:
+                touching = False
+                bounces += 1
+        if t_motors_off is not None and t - t_motors_off >= s.contact.settle_s:
+            truth = truths.at(k)
+            settled, settle_reason = judge_settled(
+                p_WB,
+                quat_to_rotmat(q_WB),
+                truth,
+                pad,
+                limits,
+                on_deck,
+                on_ground,
+                ground_ok=ground_ok,
+            )
+            if settled is Outcome.CRASHED:
+                outcome = Outcome.CRASHED
+            else:
+                outcome = Outcome.ABORTED if abort_landing else Outcome.LANDED
             break
 
         # -- sensors into the pipeline ------------------------------------------------------------------
@@ -352,7 +428,8 @@ def run_mission(
             continue
         if k % every_range == 0:
             r = faults.range(t, rangefinder.measure_at(p_WB, q_WB, truth_p[k], float(truths.yaw[k]), pad))
-            pipeline.on_range(t, r if math.isfinite(r) else (0.0 if r < 0 else None))
+            # as the sensor reports it: -inf inside its blind zone, +inf beyond its range (REP 117)
+            pipeline.on_range(t, r)
         if t + 1e-9 >= next_capture:
             # An image (or the truth sensor's report) is taken now and reaches the pipeline after the
             # processing latency; what it shows is fixed at the capture time.
@@ -388,6 +465,13 @@ def run_mission(
             mode = pipeline.step(t).mode
             if mode is Mode.ABORT and t_abort is None:
                 t_abort = t
+                abort_landing = pipeline.mission.config.final_action != "hover"
+            if mode is Mode.ABORT and not abort_landing and pipeline.mission.final_action_complete:
+                # hovering steadily at the hold point (its own estimate says so; the truth agrees when
+                # nothing touches): the abort's safe end
+                if not (on_deck or on_ground):
+                    outcome = Outcome.ABORTED
+                    break
             if mode is Mode.TRACK or mode is Mode.LAND:
                 # Locked onto something else: the estimate the vehicle follows is far from the pad.
                 est = pipeline.target(t)
@@ -396,15 +480,11 @@ def run_mission(
         if k % every_control == 0:
             cmd = pipeline.command(t)
             thrust_N, w_cmd, motors_on = cmd.thrust_N, cmd.w_WB_B_cmd, not cmd.motors_off
-            if contact is not None:
-                motors_on = False
+            if airborne and not motors_on and t_motors_off is None:
+                t_motors_off = t  # the pipeline stopped its motors: judge once the vehicle has settled
             inputs[IN_THRUST] = thrust_N
             inputs[IN_W_CMD : IN_W_CMD + 3] = w_cmd
             inputs[IN_MOTORS_ON] = 1.0 if motors_on else 0.0
-        if t_abort is not None and t - t_abort >= ABORT_HOLD_S and contact is None:
-            outcome = Outcome.ABORTED
-            break
-
         if k % every_log == 0:
             motor_t[n_motor] = t
             motor_N[n_motor] = x[IX_F : IX_F + 4]
@@ -437,7 +517,7 @@ def run_mission(
             )
 
     if outcome is None:
-        outcome = contact.outcome if contact is not None else Outcome.TIMEOUT
+        outcome = Outcome.TIMEOUT  # the motors never stopped (or the settling time ran past the end)
     wall = time.perf_counter() - wall0
     arrays = log.finalize() if log is not None else None
     stats = pipeline.stats
@@ -468,6 +548,11 @@ def run_mission(
         "touchdown_tilt_deg": None if contact is None else math.degrees(contact.tilt_rad),
         "contact_surface": None if contact is None else contact.surface,
         "contact_reason": None if contact is None else contact.reason,
+        "outcome_reason": settle_reason,
+        "time_first_contact_s": t_contact,
+        "time_touchdown_onboard_s": pipeline.touchdown.t_landed,
+        "time_motors_off_s": t_motors_off,
+        "bounces": bounces,
         "time_first_detection_s": stats.t_first_detection,
         "time_landing_start_s": stats.t_landing_start,
         "time_to_land_s": t_contact if outcome is Outcome.LANDED else None,
@@ -477,6 +562,9 @@ def run_mission(
         "detections": stats.measurements,
         "rejected_measurements": stats.rejected_measurements,
         "go_arounds": pipeline.mission.go_arounds,
+        "target_losses": pipeline.mission.target_losses,
+        "abort_reason": pipeline.mission.abort_reason,
+        "failsafe_events": [{"t": e.t, "kind": e.kind, "reason": e.reason} for e in pipeline.mission.events],
         "final_mode": pipeline.status.mode.value,
         "platform_estimate_rmse_m": rmse,
         "false_detections": false_detections,

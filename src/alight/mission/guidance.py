@@ -6,8 +6,16 @@
   replanned at the planner's rate (Sec. II-D, II-F.3);
 - landing: match the platform in x, y (position, velocity, acceleration from its estimate) while
   descending at a set vertical speed (Sec. II-F.4);
-- go-around: keep matching the platform while climbing back to the tracking height;
-- abort: hold the horizontal position at the exploration altitude.
+- search (target lost, coast over): a spiral centred on the platform's *predicted* position, flown
+  relative to that moving prediction, whose radius grows with the prediction's uncertainty (3 standard
+  deviations of its position plus ``search_speed_uncertainty_mps`` times the time since the last
+  sighting), at the exploration altitude;
+- descent hold: while the mission says a descent gate is marginal, the descent pauses at its height and
+  keeps matching the platform;
+- go-around: keep matching the platform while climbing back to the tracking height above it;
+- abort: the mission's final action: climb and hold, fly home at the exploration altitude and descend
+  there, or descend in place; each descent continues below the surface so that the onboard land
+  detector, not the guidance, ends it.
 
 In take-off and exploration the camera, not the body, follows the reference ("aiming"): a vehicle holding
 its position against a steady side force (wind) tilts into it, and its body-fixed downward camera then
@@ -27,7 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from alight.mission.state_machine import MissionConfig
+from alight.mission.state_machine import Mission, MissionConfig, position_std_m
 from alight.planning.candidates import CandidatePlanner, sample_end_times
 from alight.planning.exploration import (
     ExplorationRoute,
@@ -80,6 +88,15 @@ class GuidanceConfig:
     vehicle's own manoeuvres, short enough to follow paper 004's 5.5 s gust steps."""
     aim_max_tan_tilt: float = 1.0
     """Largest tilt tangent the aiming offset uses (45 deg)."""
+    search_speed_uncertainty_mps: float = 1.0
+    """Growth of the search radius around the predicted platform per second since the last sighting
+    (m/s): how fast the platform may drift from its prediction (a speed or heading change unseen)."""
+    search_max_radius_m: float = 30.0
+    """Largest radius of the search around the prediction (m)."""
+    abort_descent_speed_mps: float = 1.0
+    """Vertical speed of a final action's descent down to ``abort_slow_height_m`` (m/s) ..."""
+    abort_slow_height_m: float = 2.0
+    """... below which it descends at the mission's landing speed (m)."""
 
     def __post_init__(self) -> None:
         if not (self.aim_time_constant_s > 0.0 and math.isfinite(self.aim_time_constant_s)):
@@ -134,6 +151,16 @@ class Guidance:
         self._v_aim: tuple[float, float, float, float] | None = None
         self._aim_W = np.zeros(3)
         self.plans_adopted = 0
+        self._descent_hold = False
+        self._z_land = 0.0
+        self._t_land = 0.0
+        self._theta = 0.0
+        self._t_search = 0.0
+        self._abort_phase = ""
+        self._abort_xy = np.zeros(2)
+        self._abort_ground_z = 0.0
+        self.search_radius_m = 0.0
+        """Radius of the search around the predicted platform at the last reference (m)."""
 
     @property
     def aim_offset_W(self) -> FloatArray:
@@ -183,12 +210,17 @@ class Guidance:
         target: PlatformEstimate | None,
         estimator: PlatformEstimator | None,
         hover_point_W: FloatArray,
+        mission: Mission | None = None,
     ) -> None:
-        """Replan for ``mode`` at time ``t`` (called at the planner's rate)."""
+        """Replan for ``mode`` at time ``t`` (called at the planner's rate). ``mission``: the state
+        machine, for its descent hold and its final action's phase and goal."""
         self._update_aim(t, mode, ego)
+        self._descent_hold = mission is not None and mission.descent_hold
         entered = mode is not self._mode
         if entered:
             self._enter(t, mode, ego, hover_point_W)
+        if mode is Mode.ABORT and mission is not None and mission.abort_phase != self._abort_phase:
+            self._enter_abort_phase(t, ego, mission.abort_phase, mission.abort_goal_W)
         elif (
             mode is Mode.EXPLORE
             and self._route is not None
@@ -250,9 +282,27 @@ class Guidance:
             )
         elif mode is Mode.TRACK:
             self.planner.reset()
+        elif mode is Mode.LAND:
+            self._z_land, self._t_land = float(ego.p_WB[2]), t
+        elif mode is Mode.SEARCH:
+            self._theta, self._t_search, self.search_radius_m = 0.0, t, 0.0
         elif mode is Mode.ABORT:
-            goal = np.array([p0[0], p0[1], mcfg.explore_altitude_m])
+            self._abort_phase = ""
+            goal = np.array([p0[0], p0[1], max(mcfg.explore_altitude_m, float(p0[2]))])
             self._traj = _rest_to_rest(t, p0, v0 * 0.0, goal, cfg.cruise_speed_mps / 2)
+
+    def _enter_abort_phase(self, t: float, ego: EgoState, phase: str, goal_W: FloatArray) -> None:
+        """A new phase of the final action: a rest-to-rest move to its goal (climb, transit), or a
+        descent at the goal (``descend``), sampled in :meth:`reference`."""
+        self._abort_phase = phase
+        p0, v0, _ = self._start_state(t, ego)
+        if phase in ("climb", "transit"):
+            self._traj = _rest_to_rest(t, p0, v0, np.asarray(goal_W, float), self.config.cruise_speed_mps / 2)
+        elif phase == "descend":
+            self._traj = None
+            self._z_land, self._t_land = float(p0[2]), t
+            self._abort_xy = np.asarray(goal_W, float)[:2].copy()
+            self._abort_ground_z = float(goal_W[2])
 
     def _expand_search(self, t: float, ego: EgoState) -> None:
         """The next ring around the search area (``search_growth_m`` wide), flown in loops."""
@@ -318,12 +368,17 @@ class Guidance:
         """The reference at time ``t`` (called at the controller's rate)."""
         cfg, mcfg = self.config, self.mission_config
         ref: Reference
-        if mode in (Mode.LAND, Mode.GO_AROUND) and target is not None:
+        if mode is Mode.SEARCH and target is not None:
+            ref = self._search_reference(t, target)
+        elif mode is Mode.ABORT and self._abort_phase == "descend":
+            z, vz = self._descend(t, self._abort_ground_z, mcfg.land_speed_mps, fast=True)
+            p = np.array([self._abort_xy[0], self._abort_xy[1], z])
+            ref = Reference.trusted(t, p, np.array([0.0, 0.0, vz]), _ZERO3, _ZERO3, cfg.yaw, 0.0)
+        elif mode in (Mode.LAND, Mode.GO_AROUND) and target is not None:
             dt = t - self._mode_t0
             if mode is Mode.LAND:
-                z_floor = float(target.p_WP[2]) - cfg.land_floor_below_pad_m
-                z = max(self._z_entry - mcfg.land_speed_mps * dt, z_floor)
-                vz = -mcfg.land_speed_mps if z > z_floor else 0.0
+                # the ramp pauses while the mission holds the descent (a marginal gate)
+                z, vz = self._descend(t, float(target.p_WP[2]), mcfg.land_speed_mps, fast=False)
             else:
                 z_goal = float(target.p_WP[2]) + mcfg.track_height_m
                 z = min(self._z_entry + cfg.climb_speed_mps * dt, z_goal)
@@ -351,3 +406,45 @@ class Guidance:
             raise RuntimeError("guidance.reference called before update")
         self._last_ref = ref
         return ref
+
+    def _descend(self, t: float, surface_z: float, speed_mps: float, *, fast: bool) -> tuple[float, float]:
+        """Height and vertical speed of a descent ramp toward ``surface_z`` (m), continued
+        ``land_floor_below_pad_m`` below it so that the vehicle keeps sinking until the land detector
+        stops the motors; paused while the descent is held. ``fast``: descend at
+        ``abort_descent_speed_mps`` down to ``abort_slow_height_m``."""
+        cfg = self.config
+        dt = max(t - self._t_land, 0.0)
+        self._t_land = t
+        z_floor = surface_z - cfg.land_floor_below_pad_m
+        speed = speed_mps
+        if fast and self._z_land - surface_z > cfg.abort_slow_height_m:
+            speed = max(cfg.abort_descent_speed_mps, speed_mps)
+        if self._descent_hold:
+            return self._z_land, 0.0
+        self._z_land = max(self._z_land - speed * dt, z_floor)
+        return self._z_land, (-speed if self._z_land > z_floor else 0.0)
+
+    def _search_reference(self, t: float, target: PlatformEstimate) -> Reference:
+        """The spiral around the predicted platform (module docstring): its centre moves with the
+        prediction, its radius grows at one pitch per turn up to the uncertainty radius, and its angle
+        advances so that the vehicle moves at the cruise speed relative to the centre."""
+        cfg, mcfg = self.config, self.mission_config
+        dt = max(t - self._t_search, 0.0)
+        self._t_search = t
+        lost_s = max(t - target.t_last_measurement, 0.0)
+        limit = min(
+            3.0 * position_std_m(target) + cfg.search_speed_uncertainty_mps * lost_s, cfg.search_max_radius_m
+        )
+        pitch = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
+        rho = min(pitch * self._theta / (2.0 * math.pi), limit)
+        w = cfg.cruise_speed_mps / max(rho, 0.5 * pitch)
+        self._theta += w * dt
+        rho = min(pitch * self._theta / (2.0 * math.pi), limit)
+        self.search_radius_m = rho
+        c, s = math.cos(self._theta), math.sin(self._theta)
+        z_goal = mcfg.explore_altitude_m
+        z = min(self._z_entry + cfg.climb_speed_mps * (t - self._mode_t0), z_goal)
+        vz = cfg.climb_speed_mps if z < z_goal else 0.0
+        p = np.array([target.p_WP[0] + rho * c, target.p_WP[1] + rho * s, z])
+        v = np.array([target.v_WP[0] - rho * w * s, target.v_WP[1] + rho * w * c, vz])
+        return Reference.trusted(t, p, v, _ZERO3, _ZERO3, cfg.yaw, 0.0)

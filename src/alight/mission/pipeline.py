@@ -20,6 +20,7 @@ import numpy as np
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
+from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
 from alight.types import (
     PIPELINE_BLOCKS,
     Command,
@@ -154,6 +155,7 @@ class Pipeline:
         guidance: Guidance,
         controller: Controller,
         detector: Detector | None = None,
+        touchdown_detector: TouchdownDetector | None = None,
     ) -> None:
         self.ego_estimator = ego_estimator
         self.detector = detector
@@ -162,6 +164,9 @@ class Pipeline:
         self.mission = mission
         self.guidance = guidance
         self.controller = controller
+        # The onboard land detector decides the touchdown and stops the motors; nothing outside the
+        # pipeline does (the simulator only models the contact).
+        self.touchdown = touchdown_detector or TouchdownDetector(mission.config.touchdown)
         self.history = EgoHistory()
         # Estimators of the relative position (paper 004's filter) take the vehicle's own motion as input.
         self._feed_ego = getattr(platform_estimator, "set_ego", None)
@@ -176,6 +181,8 @@ class Pipeline:
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
+        self.range_raw_m: float | None = None
+        """The latest reading as the sensor reported it (``-inf``: closer than its minimum range)."""
         self._ranges: list[float | None] = []
         self.last_reference: Reference | None = None
         self.last_measurement: PlatformMeasurement | None = None
@@ -191,6 +198,7 @@ class Pipeline:
         """An IMU sample (specific force and rate in B). Samples are buffered and handed to the ego
         estimator in one call when the estimate is next needed (same arithmetic as one call each: at
         200 Hz the per-call overhead, not the filter, is what costs)."""
+        self.touchdown.on_imu(t, f_B)
         if not self.ego_estimator.initialized:  # the first odometry message initialises the filter
             return
         i = self._imu_n
@@ -222,11 +230,14 @@ class Pipeline:
         self.stats.charge("ego_estimator", t0)
 
     def on_range(self, t: float, range_m: float | None) -> None:
-        """A range-finder reading (m, from the landing-gear feet); None or non-finite when invalid.
+        """A range-finder reading (m, from the landing-gear feet) as the sensor reports it: None or
+        non-finite when invalid (ROS REP 117: ``-inf`` closer than the minimum range, ``+inf`` beyond
+        the maximum).
 
-        The mission sees the largest of the last three readings, so the motor cut-off needs three
-        readings in a row below its threshold (one noisy low reading at 5 cm would otherwise drop the
-        vehicle from a height where the fall exceeds the gear's limits)."""
+        ``range_m`` is the largest of the last three valid readings (None unless all three are valid),
+        robust to one noisy low reading; the land detector also sees the raw reading, whose ``-inf``
+        (too close) is evidence of the floor."""
+        self.range_raw_m = range_m
         value = range_m if range_m is not None and math.isfinite(range_m) else None
         self._ranges.append(value)
         if len(self._ranges) > 3:
@@ -323,8 +334,11 @@ class Pipeline:
         ego = self.ego()
         target = self.target(t)
         t0 = time.perf_counter()
-        self.status = self.mission.step(t, ego, target, self.range_m)
+        landed = self.touchdown.state is TouchdownState.LANDED
+        self.status = self.mission.step(t, ego, target, self.range_m, touchdown=landed)
         self.stats.charge("mission", t0)
+        if self.status.changed and self.status.mode is not Mode.LANDED and not self._detector_armed():
+            self.touchdown.reset()  # a go-around or a new approach starts airborne
         if self.status.changed and self._set_mode is not None:
             self._set_mode(self.status.mode)  # a detector whose quality of service follows the phase
         if self._set_view_tilt is not None:  # ... and the obliquity of the view
@@ -338,7 +352,7 @@ class Pipeline:
             self.stats.t_landing_start = t
         hover_W = self.mission.hover_point_W()
         t0 = time.perf_counter()
-        self.guidance.update(t, self.status.mode, ego, target, self.platform_estimator, hover_W)
+        self.guidance.update(t, self.status.mode, ego, target, self.platform_estimator, hover_W, self.mission)
         self.stats.charge("guidance", t0)
         return self.status
 
@@ -352,13 +366,34 @@ class Pipeline:
             self.stats.charge("platform_estimator", t0)
             self._target = None
         mode = self.status.mode
-        if mode in (Mode.LANDED, Mode.IDLE):
+        if mode in (Mode.LANDED, Mode.IDLE) or self.touchdown.state is TouchdownState.LANDED:
             return Command(t, 0.0, _ZERO3, motors_off=True)
-        target = self.target(t) if mode in (Mode.LAND, Mode.GO_AROUND) else None
+        target = self.target(t) if mode in (Mode.LAND, Mode.GO_AROUND, Mode.SEARCH) else None
         t0 = time.perf_counter()
         ref = self.guidance.reference(t, mode, target)
         t0 = self.stats.charge("guidance", t0)
         self.last_reference = ref
         cmd = self.controller.command(ego, ref)
         self.stats.charge("controller", t0)
+        if self._detector_armed():
+            cmd = self._touchdown_step(t, ego, target, cmd)
+        return cmd
+
+    def _detector_armed(self) -> bool:
+        """The land detector runs during a descent: the landing, and a final action's descent."""
+        mode = self.status.mode
+        return mode is Mode.LAND or (mode is Mode.ABORT and self.mission.abort_phase in ("descend", "done"))
+
+    def _touchdown_step(
+        self, t: float, ego: EgoState, target: PlatformEstimate | None, cmd: Command
+    ) -> Command:
+        """Spool the thrust down on ground contact and stop the motors once the land detector says
+        landed (mission/touchdown_detector.py)."""
+        scale = self.touchdown.thrust_scale(t)
+        thrust = cmd.thrust_N * scale
+        v_z_rel = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
+        if self.touchdown.update(t, v_z_rel, self.range_raw_m, thrust) is TouchdownState.LANDED:
+            return Command(t, 0.0, _ZERO3, motors_off=True)
+        if self.touchdown.spooling():
+            return Command(t, thrust, self.touchdown.level_rates(ego.q_WB))
         return cmd

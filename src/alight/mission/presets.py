@@ -36,6 +36,7 @@ from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
+from alight.mission.touchdown_detector import TouchdownConfig
 from alight.pads.falanga_tag import FalangaTag
 from alight.pads.red_target import RedTarget
 from alight.pads.sdu_pad import SduPad
@@ -79,18 +80,41 @@ class Preset:
     """The compute-energy model of the detector's quality-of-service settings, when it has one."""
 
 
-def _mission_config(s: object, land_speed_mps: float = 0.4) -> MissionConfig:
+_MISSION_OPTIONAL = (
+    "takeoff_timeout_s",
+    "search_timeout_s",
+    "max_target_losses",
+    "land_position_tolerance_m",
+    "land_velocity_tolerance_mps",
+    "max_estimate_age_s",
+    "land_max_position_std_m",
+    "land_hold_offset_m",
+    "land_hold_rel_speed_mps",
+    "land_abort_offset_m",
+    "land_abort_rel_speed_mps",
+    "land_lost_timeout_s",
+    "land_abort_position_std_m",
+    "land_hold_timeout_s",
+    "final_action",
+)
+"""Scenario mission keys whose None means the MissionConfig default."""
+
+
+def _mission_config(s: object, land_speed_mps: float = 0.4, hover_thrust_N: float = 9.81) -> MissionConfig:
     m = s.mission  # type: ignore[attr-defined]
+    td = {k: v for k, v in m.touchdown.model_dump().items() if v is not None}
+    optional = {k: getattr(m, k) for k in _MISSION_OPTIONAL if getattr(m, k) is not None}
     return MissionConfig(
         takeoff_altitude_m=m.explore_altitude_m if m.takeoff_altitude_m is None else m.takeoff_altitude_m,
         explore_altitude_m=m.explore_altitude_m,
         track_height_m=m.track_height_m,
         land_speed_mps=land_speed_mps if m.land_speed_mps is None else m.land_speed_mps,
-        motor_cutoff_range_m=m.motor_cutoff_range_m,
         land_commit_height_m=m.land_commit_height_m,
         lost_timeout_s=m.lost_timeout_s,
         max_go_arounds=m.max_go_arounds,
         time_budget_s=m.time_budget_s,
+        touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td),
+        **optional,
     )
 
 
@@ -104,7 +128,7 @@ def _flight_core(
     integral_gain: float = 0.0,
 ) -> tuple[Mission, Guidance, Controller, EgoEkf]:
     sc = s  # the Scenario; typed loosely to keep this module free of the scenario's import cycle
-    mission = Mission(_mission_config(sc, land_speed_mps))
+    mission = Mission(_mission_config(sc, land_speed_mps, airframe.weight_N))
     p = sc.planner  # type: ignore[attr-defined]
     planner = CandidatePlanner(
         PlannerConfig.from_airframe(
@@ -127,6 +151,11 @@ def _flight_core(
             camera_fov_rad=fov_rad,
             search_pattern=sc.mission.search_pattern,  # type: ignore[attr-defined]
             aim_camera=sc.mission.aim_camera,  # type: ignore[attr-defined]
+            **(
+                {}
+                if sc.mission.search_speed_uncertainty_mps is None  # type: ignore[attr-defined]
+                else {"search_speed_uncertainty_mps": sc.mission.search_speed_uncertainty_mps}  # type: ignore[attr-defined]
+            ),
         ),
     )
     cs = sc.controller  # type: ignore[attr-defined]

@@ -1,33 +1,51 @@
-"""The mission state machine of paper 000 Sec. II-F (Fig. 6), with the failsafes a real mission needs.
+"""The mission state machine of paper 000 Sec. II-F (Fig. 6), with the failsafes a real mission needs,
+all relative to the moving platform.
 
 Paper 000 has four states: takeoff, exploration, platform tracking, landing. We add:
 
-- ``LANDED``: the motors are stopped (paper: "the vehicle stops the motors when the distance to the
-  platform is below a given threshold").
-- ``GO_AROUND``: the target was lost, or the vehicle drifted off the pad, during the descent; climb back
-  to the tracking height while following the last estimate, then track again.
-- ``ABORT``: too many go-arounds, or the mission's time budget is spent; hold position at the exploration
-  altitude (a real vehicle would return home). The runner reports the mission as ``aborted``.
-- Tracking falls back to exploration when the target has not been seen for ``lost_timeout_s``.
+- ``SEARCH``: the target was lost while tracking. TRACK first *coasts* on the platform estimator's
+  prediction for ``lost_timeout_s`` (the guidance keeps following the predicted platform and climbs to
+  widen the view); then SEARCH flies a spiral centred on the *predicted* platform position whose radius
+  grows with the prediction's uncertainty (mission/guidance.py), for ``search_timeout_s``; only then does
+  the mission fall back to covering the whole area (EXPLORE).
+- ``LANDED``: the onboard land detector (mission/touchdown_detector.py) decided the vehicle stands on the
+  deck; the motors are stopped.
+- ``GO_AROUND``: during the descent, above the commit height, a descent gate failed (target unseen too
+  long, horizontal offset, relative velocity, estimator consistency): climb back to the tracking height
+  above the predicted platform while following it, then track again. Below ``land_commit_height_m`` the
+  descent continues on the prediction (a downward camera cannot see the whole pad from closer than about
+  its size); while a gate is only marginal the descent holds its height (``descent_hold``).
+- ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
+  budget is spent. ABORT performs the ``final_action``: ``hover`` (climb to the exploration altitude and
+  hold), ``return`` (fly to the take-off point at the exploration altitude and land there) or
+  ``land_in_place``; ``final_action_complete`` says when it is done (hovering steadily at the hold point
+  for ``abort_hover_s``, or touchdown detected on board).
 
-The machine is a pure function of its inputs and its own small memory; what each mode flies is the
-guidance's business (``mission/guidance.py``). Every transition is listed in ``TRANSITIONS`` and the
-tests walk the whole table.
+Every failsafe is recorded in ``events`` (time, kind, reason), and the abort's reason in
+``abort_reason``. The machine is a pure function of its inputs and its own small memory; what each mode
+flies is the guidance's business (``mission/guidance.py``). Every transition is listed in ``TRANSITIONS``
+and the tests walk the whole table.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
-from alight.types import EgoState, Mode, PlatformEstimate
+from alight.mission.touchdown_detector import TouchdownConfig
+from alight.types import EgoState, FloatArray, Mode, PlatformEstimate
+
+FinalAction = Literal["hover", "return", "land_in_place"]
+FINAL_ACTIONS: tuple[str, ...] = ("hover", "return", "land_in_place")
 
 
 @dataclass(frozen=True, kw_only=True)
 class MissionConfig:
-    """Parameters of the mission logic. Heights are above the surface they refer to."""
+    """Parameters of the mission logic. Heights are above the surface they refer to. These are the
+    defaults of every preset (a scenario's ``mission:`` key left out or None keeps them)."""
 
     takeoff_altitude_m: float = 4.0
     """Hover height reached after take-off, above the take-off point (m)."""
@@ -41,32 +59,59 @@ class MissionConfig:
     """Take-off is done when within this height of the hover point ... (m)."""
     hover_speed_tolerance_mps: float = 0.3
     """... and slower than this (m/s)."""
+    takeoff_timeout_s: float = 30.0
+    """Take-off not done after this long (wind stronger than the vehicle, a motor short of thrust):
+    abort (s)."""
     land_position_tolerance_m: float = 0.25
-    """Landing starts when the horizontal offset to the pad is below this (m) ..."""
+    """Descent gate, horizontal offset to the pad: the landing starts below this (m) ..."""
     land_velocity_tolerance_mps: float = 0.3
-    """... and the horizontal velocity matches the platform's within this (m/s) ..."""
-    land_dwell_s: float = 0.3
-    """... for at least this long (s)."""
+    """Descent gate, relative horizontal velocity: ... and with the platform's velocity matched within
+    this (m/s) ..."""
     max_estimate_age_s: float = 0.6
-    """An estimate older than this does not start a landing (s)."""
-    lost_timeout_s: float = 3.0
-    """Tracking gives up and explores again when the target is unseen this long (s)."""
-    land_lost_timeout_s: float = 1.0
-    """The descent is abandoned (go-around) when the target is unseen this long (s)."""
+    """Descent gate, estimate age: ... and the last measurement younger than this (s) ..."""
+    land_max_position_std_m: float = 0.3
+    """Descent gate, estimator consistency: ... and the platform estimate's horizontal standard
+    deviation, sqrt(trace of its xy covariance / 2), below this (m) ..."""
+    land_dwell_s: float = 0.3
+    """... all for at least this long (s)."""
+    land_hold_offset_m: float = 0.45
+    """During the descent, above the commit height, the vehicle holds its height while the offset to the
+    pad exceeds this, or the relative velocity ``land_hold_rel_speed_mps``, or the estimate is older than
+    ``max_estimate_age_s`` or less certain than ``land_max_position_std_m`` (m)."""
+    land_hold_rel_speed_mps: float = 0.6
+    """See ``land_hold_offset_m`` (m/s)."""
     land_abort_offset_m: float = 0.6
-    """The descent is abandoned when the horizontal offset to the pad exceeds this (m) ..."""
-    land_abort_min_height_m: float = 0.4
-    """... while still higher than this above the pad (below it, committing is safer) (m)."""
+    """The descent is abandoned (go-around) when the horizontal offset to the pad exceeds this (m) ..."""
+    land_abort_rel_speed_mps: float = 1.2
+    """... or the relative horizontal velocity exceeds this (m/s) ..."""
+    land_lost_timeout_s: float = 1.0
+    """... or the target is unseen this long (s) ..."""
+    land_abort_position_std_m: float = 0.8
+    """... or the estimate's horizontal standard deviation exceeds this (m) ..."""
+    land_hold_timeout_s: float = 3.0
+    """... or the descent has held its height this long (s)."""
     land_commit_height_m: float = 1.5
-    """Below this height above the pad a lost target no longer aborts the descent: a downward camera
-    cannot see the whole pad from closer than about its own size, so the last metre is flown on the
-    platform estimator's prediction (paper 000's reason for the model-based filter) (m)."""
-    motor_cutoff_range_m: float = 0.03
-    """The motors stop when the range finder (from the landing-gear feet) reads below this (m)."""
+    """Below this height above the pad no gate stops the descent any more: it continues on the platform
+    estimator's prediction (a downward camera cannot see the whole pad from closer than about its own
+    size: paper 000's reason for the model-based filter) (m)."""
+    lost_timeout_s: float = 3.0
+    """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
+    search_timeout_s: float = 20.0
+    """The search around the predicted platform lasts this long before the whole area is explored
+    again (s)."""
+    max_target_losses: int = 5
+    """The mission aborts when the target is lost (TRACK -> SEARCH) more often than this."""
     max_go_arounds: int = 3
-    """After this many go-arounds the mission aborts."""
+    """The mission aborts after more go-arounds than this."""
     time_budget_s: float | None = None
     """Abort when the mission has run this long without landing (s); None for no budget."""
+    final_action: FinalAction = "hover"
+    """What ABORT does: ``hover`` at the exploration altitude, ``return`` to the take-off point and land
+    there, or ``land_in_place``."""
+    abort_hover_s: float = 2.0
+    """The ``hover`` final action is complete after holding the hold point steadily this long (s)."""
+    touchdown: TouchdownConfig = field(default_factory=TouchdownConfig)
+    """The onboard land detector's parameters."""
 
     def __post_init__(self) -> None:
         positive = (
@@ -74,18 +119,31 @@ class MissionConfig:
             "explore_altitude_m",
             "track_height_m",
             "land_speed_mps",
+            "takeoff_timeout_s",
             "land_position_tolerance_m",
             "land_velocity_tolerance_mps",
+            "land_max_position_std_m",
+            "land_hold_offset_m",
+            "land_hold_rel_speed_mps",
+            "land_abort_offset_m",
+            "land_abort_rel_speed_mps",
+            "land_abort_position_std_m",
+            "land_hold_timeout_s",
             "lost_timeout_s",
             "land_lost_timeout_s",
-            "motor_cutoff_range_m",
+            "search_timeout_s",
+            "abort_hover_s",
         )
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
-        if self.max_go_arounds < 0:
-            raise ValueError("mission.max_go_arounds must be >= 0")
+        if self.max_go_arounds < 0 or self.max_target_losses < 0:
+            raise ValueError("mission.max_go_arounds and mission.max_target_losses must be >= 0")
+        if self.final_action not in FINAL_ACTIONS:
+            raise ValueError(
+                f"mission.final_action must be one of {FINAL_ACTIONS}, got {self.final_action!r}"
+            )
 
 
 # Every transition the machine can make: (from, to, event). The tests walk this table.
@@ -94,16 +152,26 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.TAKEOFF, Mode.EXPLORE, "hover reached, no target yet"),
     (Mode.TAKEOFF, Mode.TRACK, "hover reached, target already seen"),
     (Mode.TAKEOFF, Mode.TRACK, "target seen above the tracking height"),
+    (Mode.TAKEOFF, Mode.ABORT, "take-off timeout"),
     (Mode.EXPLORE, Mode.TRACK, "target detected"),
+    (Mode.EXPLORE, Mode.ABORT, "time budget spent"),
     (Mode.TRACK, Mode.LAND, "above the platform with matched velocity"),
-    (Mode.TRACK, Mode.EXPLORE, "target lost"),
-    (Mode.LAND, Mode.LANDED, "range below the motor cut-off"),
-    (Mode.LAND, Mode.GO_AROUND, "target lost or off the pad during the descent"),
+    (Mode.TRACK, Mode.SEARCH, "target lost, coast ended"),
+    (Mode.TRACK, Mode.ABORT, "too many target losses"),
+    (Mode.TRACK, Mode.ABORT, "time budget spent"),
+    (Mode.SEARCH, Mode.TRACK, "target reacquired"),
+    (Mode.SEARCH, Mode.EXPLORE, "search around the prediction timed out"),
+    (Mode.SEARCH, Mode.ABORT, "time budget spent"),
+    (Mode.LAND, Mode.LANDED, "touchdown detected on board"),
+    (Mode.LAND, Mode.GO_AROUND, "target lost during the descent"),
+    (Mode.LAND, Mode.GO_AROUND, "off the pad during the descent"),
+    (Mode.LAND, Mode.GO_AROUND, "relative velocity too large during the descent"),
+    (Mode.LAND, Mode.GO_AROUND, "estimate too uncertain during the descent"),
+    (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
+    (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
-    (Mode.EXPLORE, Mode.ABORT, "time budget spent"),
-    (Mode.TRACK, Mode.ABORT, "time budget spent"),
-    (Mode.LAND, Mode.ABORT, "time budget spent"),
+    (Mode.GO_AROUND, Mode.ABORT, "time budget spent"),
 )
 
 
@@ -118,8 +186,27 @@ class MissionStatus:
     """Time at which the current mode was entered (s)."""
 
 
+@dataclass(frozen=True, slots=True)
+class FailsafeEvent:
+    """One failsafe event, as ``result.json`` records it."""
+
+    t: float
+    """Time (s)."""
+    kind: str
+    """``coast``, ``reacquired``, ``search``, ``explore``, ``descent_hold``, ``go_around``, ``abort``,
+    ``final_action``, ``final_action_complete``."""
+    reason: str
+
+
+def position_std_m(target: PlatformEstimate) -> float:
+    """Horizontal standard deviation of a platform estimate, sqrt(trace(cov_xy) / 2) (m): the
+    consistency gate's measure (a diverging or starved filter's covariance grows)."""
+    c = target.cov_p_WP
+    return math.sqrt(max(0.5 * (float(c[0, 0]) + float(c[1, 1])), 0.0))
+
+
 class Mission:
-    """Decides the mode from the ego estimate, the platform estimate and the range finder."""
+    """Decides the mode from the ego estimate, the platform estimate and the onboard land detector."""
 
     def __init__(self, config: MissionConfig | None = None) -> None:
         self.config = config or MissionConfig()
@@ -130,30 +217,75 @@ class Mission:
         self.mode_since = 0.0
         self.reason = ""
         self.go_arounds = 0
+        self.target_losses = 0
         self._t_start: float | None = None
         self._matched_since: float | None = None
+        self._hold_since: float | None = None
+        self._coasting = False
+        self.descent_hold = False
+        """True while the descent holds its height (a marginal gate); the guidance reads it."""
         self.takeoff_point_W = np.zeros(3)
         self.history: list[tuple[float, Mode, str]] = []
+        self.events: list[FailsafeEvent] = []
+        self.abort_reason: str | None = None
+        self.abort_phase = ""
+        """What the final action is doing: ``climb``, ``transit``, ``descend``, ``hold``, ``done``."""
+        self.abort_goal_W = np.zeros(3)
+        """Where the final action goes: the hold point, the point above home, or the landing spot."""
+        self._steady_since: float | None = None
+        self.final_action_complete = False
 
     # -- helpers ---------------------------------------------------------------------------------
     def _go(self, t: float, mode: Mode, reason: str) -> None:
         self.mode, self.mode_since, self.reason = mode, t, reason
         self._matched_since = None
+        self._hold_since = None
+        self.descent_hold = False
         self.history.append((t, mode, reason))
+
+    def _event(self, t: float, kind: str, reason: str) -> None:
+        self.events.append(FailsafeEvent(t, kind, reason))
+
+    def _abort(self, t: float, ego: EgoState, reason: str) -> None:
+        cfg = self.config
+        self._go(t, Mode.ABORT, reason)
+        self.abort_reason = reason
+        self._event(t, "abort", reason)
+        p = ego.p_WB
+        if cfg.final_action == "hover":
+            self.abort_phase = "climb"
+            self.abort_goal_W = np.array([p[0], p[1], max(float(p[2]), cfg.explore_altitude_m)])
+        elif cfg.final_action == "return":
+            self.abort_phase = "transit"
+            home = self.takeoff_point_W
+            self.abort_goal_W = np.array([home[0], home[1], max(float(p[2]), cfg.explore_altitude_m)])
+        else:
+            self.abort_phase = "descend"
+            self.abort_goal_W = np.array([p[0], p[1], float(self.takeoff_point_W[2])])
+        self._event(t, "final_action", f"{cfg.final_action}: {self.abort_phase}")
 
     @staticmethod
     def _age(t: float, target: PlatformEstimate | None) -> float:
         return math.inf if target is None else t - target.t_last_measurement
 
-    def hover_point_W(self) -> np.ndarray:
-        return self.takeoff_point_W + np.array([0.0, 0.0, self.config.takeoff_altitude_m])
+    def hover_point_W(self) -> FloatArray:
+        p: FloatArray = self.takeoff_point_W + np.array([0.0, 0.0, self.config.takeoff_altitude_m])
+        return p
 
     # -- the step ----------------------------------------------------------------------------------
     def step(
-        self, t: float, ego: EgoState, target: PlatformEstimate | None, range_m: float | None
+        self,
+        t: float,
+        ego: EgoState,
+        target: PlatformEstimate | None,
+        range_m: float | None = None,
+        *,
+        touchdown: bool = False,
     ) -> MissionStatus:
         """Advance the machine to time ``t``. ``target`` is the platform estimate at ``t`` (None before
-        the first detection); ``range_m`` is the range finder's reading from the feet, None when invalid."""
+        the first detection); ``range_m`` is the range finder's reading from the feet, None when invalid
+        (kept for logic that wants it; the touchdown is the land detector's); ``touchdown``: the onboard
+        land detector says the vehicle stands on a surface."""
         cfg = self.config
         before = self.mode
         if self.mode is Mode.IDLE:
@@ -184,55 +316,38 @@ class Mission:
                     self._go(t, Mode.TRACK, "hover reached, target already seen")
                 else:
                     self._go(t, Mode.EXPLORE, "hover reached, no target yet")
+            elif t - self.mode_since > cfg.takeoff_timeout_s:
+                self._event(t, "takeoff_timeout", f"hover not reached in {cfg.takeoff_timeout_s:g} s")
+                self._abort(t, ego, "take-off timeout")
 
         elif mode is Mode.EXPLORE:
             if over_budget:
-                self._go(t, Mode.ABORT, "time budget spent")
+                self._abort(t, ego, "time budget spent")
             elif target is not None and age < cfg.lost_timeout_s:
                 self._go(t, Mode.TRACK, "target detected")
 
         elif mode is Mode.TRACK:
+            self._step_track(t, ego, target, age, over_budget)
+
+        elif mode is Mode.SEARCH:
             if over_budget:
-                self._go(t, Mode.ABORT, "time budget spent")
-            elif target is None or age > cfg.lost_timeout_s:
-                self._go(t, Mode.EXPLORE, "target lost")
-            else:
-                dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
-                dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
-                matched = (
-                    dp < cfg.land_position_tolerance_m
-                    and dv < cfg.land_velocity_tolerance_mps
-                    and age < cfg.max_estimate_age_s
-                )
-                if not matched:
-                    self._matched_since = None
-                elif self._matched_since is None:
-                    self._matched_since = t
-                if self._matched_since is not None and t - self._matched_since >= cfg.land_dwell_s:
-                    self._go(t, Mode.LAND, "above the platform with matched velocity")
+                self._abort(t, ego, "time budget spent")
+            elif target is not None and target.t_last_measurement > self.mode_since:
+                self._event(t, "reacquired", "target seen during the search")
+                self._go(t, Mode.TRACK, "target reacquired")
+            elif t - self.mode_since > cfg.search_timeout_s:
+                self._event(t, "explore", "search around the prediction timed out")
+                self._go(t, Mode.EXPLORE, "search around the prediction timed out")
 
         elif mode is Mode.LAND:
-            height = None if target is None else float(ego.p_WB[2] - target.p_WP[2])
-            if range_m is not None and math.isfinite(range_m) and range_m < cfg.motor_cutoff_range_m:
-                self._go(t, Mode.LANDED, "range below the motor cut-off")
-            elif over_budget:
-                self._go(t, Mode.ABORT, "time budget spent")
-            elif target is None or (
-                age > cfg.land_lost_timeout_s and (height is None or height > cfg.land_commit_height_m)
-            ):
-                self._go_around(t, "target lost during the descent")
-            else:
-                dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
-                if (
-                    dp > cfg.land_abort_offset_m
-                    and height is not None
-                    and height > cfg.land_abort_min_height_m
-                ):
-                    self._go_around(t, "off the pad during the descent")
+            self._step_land(t, ego, target, age, over_budget, touchdown)
 
         elif mode is Mode.GO_AROUND:
             if self.go_arounds > cfg.max_go_arounds:
-                self._go(t, Mode.ABORT, "too many go-arounds")
+                self._event(t, "retry_limit", f"{self.go_arounds} go-arounds")
+                self._abort(t, ego, "too many go-arounds")
+            elif over_budget:
+                self._abort(t, ego, "time budget spent")
             elif target is not None:
                 height = float(ego.p_WB[2] - target.p_WP[2])
                 if height > cfg.track_height_m - cfg.hover_tolerance_m:
@@ -240,9 +355,128 @@ class Mission:
             elif ego.p_WB[2] > cfg.explore_altitude_m - cfg.hover_tolerance_m:
                 self._go(t, Mode.TRACK, "tracking height regained")
 
-        # LANDED and ABORT are final.
+        elif mode is Mode.ABORT:
+            self._step_abort(t, ego, touchdown)
+
+        # LANDED is final; ABORT's only way on is its final action.
         return MissionStatus(self.mode, self.mode is not before, self.reason, self.mode_since)
+
+    def _step_track(
+        self, t: float, ego: EgoState, target: PlatformEstimate | None, age: float, over_budget: bool
+    ) -> None:
+        cfg = self.config
+        if over_budget:
+            self._abort(t, ego, "time budget spent")
+            return
+        if target is None or age > cfg.lost_timeout_s:
+            self._coasting = False
+            self.target_losses += 1
+            if self.target_losses > cfg.max_target_losses:
+                self._event(t, "retry_limit", f"target lost {self.target_losses} times")
+                self._abort(t, ego, "too many target losses")
+            else:
+                self._event(t, "search", "coast ended: search around the predicted platform")
+                self._go(t, Mode.SEARCH, "target lost, coast ended")
+            return
+        if age > cfg.max_estimate_age_s and not self._coasting:
+            self._coasting = True
+            self._event(t, "coast", "target unseen: following the prediction")
+        elif age <= cfg.max_estimate_age_s and self._coasting:
+            self._coasting = False
+            self._event(t, "reacquired", "target seen again while coasting")
+        dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
+        dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
+        matched = (
+            dp < cfg.land_position_tolerance_m
+            and dv < cfg.land_velocity_tolerance_mps
+            and age < cfg.max_estimate_age_s
+            and position_std_m(target) < cfg.land_max_position_std_m
+        )
+        if not matched:
+            self._matched_since = None
+        elif self._matched_since is None:
+            self._matched_since = t
+        if self._matched_since is not None and t - self._matched_since >= cfg.land_dwell_s:
+            self._go(t, Mode.LAND, "above the platform with matched velocity")
+
+    def _step_land(
+        self,
+        t: float,
+        ego: EgoState,
+        target: PlatformEstimate | None,
+        age: float,
+        over_budget: bool,
+        touchdown: bool,
+    ) -> None:
+        cfg = self.config
+        if touchdown:
+            self._go(t, Mode.LANDED, "touchdown detected on board")
+            return
+        if over_budget:
+            self._abort(t, ego, "time budget spent")
+            return
+        if target is None:
+            self._go_around(t, "target lost during the descent")
+            return
+        height = float(ego.p_WB[2] - target.p_WP[2])
+        if height <= cfg.land_commit_height_m:
+            self.descent_hold = False  # committed: the descent continues on the prediction
+            return
+        dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
+        dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
+        std = position_std_m(target)
+        if age > cfg.land_lost_timeout_s:
+            self._go_around(t, "target lost during the descent")
+        elif dp > cfg.land_abort_offset_m:
+            self._go_around(t, "off the pad during the descent")
+        elif dv > cfg.land_abort_rel_speed_mps:
+            self._go_around(t, "relative velocity too large during the descent")
+        elif std > cfg.land_abort_position_std_m:
+            self._go_around(t, "estimate too uncertain during the descent")
+        else:
+            marginal = (
+                dp > cfg.land_hold_offset_m
+                or dv > cfg.land_hold_rel_speed_mps
+                or age > cfg.max_estimate_age_s
+                or std > cfg.land_max_position_std_m
+            )
+            if marginal and not self.descent_hold:
+                self.descent_hold, self._hold_since = True, t
+                why = f"offset {dp:.2f} m, rel. speed {dv:.2f} m/s, age {age:.2f} s, std {std:.2f} m"
+                self._event(t, "descent_hold", why)
+            elif not marginal:
+                self.descent_hold, self._hold_since = False, None
+            if self._hold_since is not None and t - self._hold_since > cfg.land_hold_timeout_s:
+                self._go_around(t, "descent held too long")
 
     def _go_around(self, t: float, reason: str) -> None:
         self.go_arounds += 1
+        self._event(t, "go_around", reason)
         self._go(t, Mode.GO_AROUND, reason)
+
+    def _step_abort(self, t: float, ego: EgoState, touchdown: bool) -> None:
+        cfg = self.config
+        phase = self.abort_phase
+        if phase in ("done", ""):
+            return
+        goal = self.abort_goal_W
+        near = float(np.linalg.norm(ego.p_WB[:2] - goal[:2])) < 0.5
+        steady = float(np.linalg.norm(ego.v_WB)) < 0.3
+        if phase == "climb" and near and abs(float(ego.p_WB[2] - goal[2])) < 0.5 and steady:
+            self.abort_phase, self._steady_since = "hold", t
+        elif phase == "hold":
+            if not (near and steady):
+                self._steady_since = None
+            elif self._steady_since is None:
+                self._steady_since = t
+            if self._steady_since is not None and t - self._steady_since >= cfg.abort_hover_s:
+                self.abort_phase = "done"
+        elif phase == "transit" and near and float(np.linalg.norm(ego.v_WB[:2])) < 0.5:
+            self.abort_phase = "descend"
+            self.abort_goal_W = np.array([goal[0], goal[1], float(self.takeoff_point_W[2])])
+        elif phase == "descend" and touchdown:
+            self.abort_phase = "done"
+        if self.abort_phase != phase:
+            kind = "final_action_complete" if self.abort_phase == "done" else "final_action"
+            self._event(t, kind, f"{cfg.final_action}: {self.abort_phase}")
+            self.final_action_complete = self.abort_phase == "done"

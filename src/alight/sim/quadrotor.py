@@ -272,35 +272,292 @@ def step_many(
     return y
 
 
-@njit(cache=True)
-def rest_on_surface(
-    x: FloatArray, z_surface: float, v_surface_W: FloatArray, gear_height: float
-) -> FloatArray:
-    """A minimal resting contact for a vehicle standing on a level surface (the ground before take-off,
-    the pad after landing).
+# --------------------------------------------------------------------------------------------------
+# Contact with the deck (the pad on the moving platform) and the ground
+# --------------------------------------------------------------------------------------------------
+# A penalty (spring-damper) model at the four landing-gear feet, with regularised Coulomb friction.
+#
+# Why a penalty model rather than impulses or constraints: it is a smooth force inside the same RK4
+# step as the rest of the dynamics (no event detection, no complementarity solve, nothing that changes
+# the integrator's order), it gives an impact a duration and so an accelerometer spike the onboard land
+# detector can read, and it carries the deck's velocity and acceleration into the vehicle through the
+# feet's relative velocity. Its cost is a small penetration (1.2 mm at rest with the defaults) and a
+# stiffness that must stay inside RK4's stability region at 1 kHz: with k = 2500 N/m and c = 25 N s/m per
+# foot, a 1 kg vehicle's vertical mode is 100 rad/s (0.1 rad per step), the roll/pitch mode on feet 0.2 m
+# out with J = 0.0104 kg m^2 about 200 rad/s (0.2 rad per step), far from RK4's |lambda dt| ~ 2.8 limit;
+# the friction's regularisation (slip speed 0.02 m/s) keeps its stiffness (mu m g / v_slip / m) near
+# 300 1/s (0.3 per step); its price is a creep of the feet, ~1 cm/s on a deck braking at 2.5 m/s^2.
+# tests/sim/test_sim_contact.py checks rest, impact, bounce, friction, a braking deck and the edges.
 
-    When the feet (``p_z - gear_height``) are at or below ``z_surface`` and the vehicle does not move up
-    relative to the surface, the vehicle is put on the surface: feet at ``z_surface``, velocity equal to
-    the surface's ``v_surface_W`` (3,), level attitude with the current heading, no body rates. Otherwise
-    x is returned unchanged (a copy). Rotor thrusts are kept, so thrust above weight lifts off on the
-    next step. Judge the touchdown (:mod:`alight.sim.touchdown`) before calling this.
+CP_K = 0
+"""Normal stiffness per foot (N/m)."""
+CP_C = 1
+"""Normal damping per foot (N s/m); the normal force never pulls."""
+CP_MU = 2
+"""Coulomb friction coefficient (feet on the deck or the ground)."""
+CP_V_SLIP = 3
+"""Slip speed of the regularised friction (m/s): below it the friction force grows linearly."""
+CP_GEAR_H = 4
+"""Height of the body origin above the feet (m)."""
+CP_GEAR_W = 5
+"""Half the distance between feet along x_B and y_B (m): feet at (+-w, +-w, -gear_height) in B."""
+CP_DECK_DEPTH = 6
+"""A foot deeper than this below the deck surface is beside the platform, not on it (m)."""
+N_CP = 7
+
+DK_ON = 0
+"""1.0 when there is a deck (a platform carrying the pad)."""
+DK_P = 1
+"""Deck (pad) centre in W at the deck time (m), [1:4]; z is the deck surface."""
+DK_YAW = 4
+"""Deck heading (rad)."""
+DK_HALF = 5
+"""Half the side of the square deck (m)."""
+DK_V = 6
+"""Deck velocity in W (m/s), [6:9]."""
+DK_A = 9
+"""Deck acceleration in W (m/s^2), [9:12]."""
+DK_YAW_RATE = 12
+"""Deck heading rate (rad/s)."""
+N_DK = 13
+
+
+def pack_contact_params(
+    airframe: Airframe = DEFAULT_AIRFRAME,
+    *,
+    stiffness_N_per_m: float = 2500.0,
+    damping_Ns_per_m: float = 25.0,
+    friction: float = 0.6,
+    slip_speed_mps: float = 0.02,
+    gear_half_width_m: float = 0.2,
+    deck_depth_m: float = 0.15,
+) -> FloatArray:
+    """The contact model's parameters as the flat array the kernels read, shape (N_CP,); see ``CP_*``.
+    Defaults: a stiff skid with damping ratio 0.5 (1 kg on four feet: restitution ~0.16, so a 0.4 m/s
+    touchdown with hover thrust still on rebounds at ~0.07 m/s and hops a few centimetres until the
+    thrust drops: the bounces ``result.json`` counts), rubber-on-plastic friction 0.6.
     """
-    y = x.copy()
-    if x[IX_P + 2] - gear_height > z_surface:
-        return y
-    if x[IX_V + 2] - v_surface_W[2] > 0.0:
-        return y
-    y[IX_P + 2] = z_surface + gear_height
+    values = (stiffness_N_per_m, damping_Ns_per_m, friction, slip_speed_mps, gear_half_width_m, deck_depth_m)
+    if not all(math.isfinite(v) and v >= 0.0 for v in values) or slip_speed_mps <= 0.0:
+        raise ValueError("contact parameters must be finite and >= 0, slip speed > 0")
+    cp = np.zeros(N_CP)
+    cp[CP_K] = stiffness_N_per_m
+    cp[CP_C] = damping_Ns_per_m
+    cp[CP_MU] = friction
+    cp[CP_V_SLIP] = slip_speed_mps
+    cp[CP_GEAR_H] = airframe.gear_height
+    cp[CP_GEAR_W] = gear_half_width_m
+    cp[CP_DECK_DEPTH] = deck_depth_m
+    return cp
+
+
+def no_deck() -> FloatArray:
+    """A deck array (N_DK,) for a world with only the ground."""
+    return np.zeros(N_DK)
+
+
+@njit(cache=True)
+def deck_at(deck: FloatArray, tau: float, out: FloatArray) -> None:
+    """The deck ``tau`` seconds after its stamped state (constant acceleration and turn rate over the
+    few milliseconds a batch of steps spans), written into ``out`` (N_DK,)."""
+    for j in range(N_DK):
+        out[j] = deck[j]
     for j in range(3):
-        y[IX_V + j] = v_surface_W[j]
-        y[IX_W + j] = 0.0
-    qx, qy, qz, qw = x[6], x[7], x[8], x[9]
-    yaw = math.atan2(2.0 * (qx * qy + qz * qw), 1.0 - 2.0 * (qy * qy + qz * qz))
-    y[IX_Q] = 0.0
-    y[IX_Q + 1] = 0.0
-    y[IX_Q + 2] = math.sin(0.5 * yaw)
-    y[IX_Q + 3] = math.cos(0.5 * yaw)
-    return y
+        out[DK_P + j] = deck[DK_P + j] + deck[DK_V + j] * tau + 0.5 * deck[DK_A + j] * tau * tau
+        out[DK_V + j] = deck[DK_V + j] + deck[DK_A + j] * tau
+    out[DK_YAW] = deck[DK_YAW] + deck[DK_YAW_RATE] * tau
+
+
+@njit(cache=True)
+def contact_wrench(
+    y: FloatArray, deck: FloatArray, cp: FloatArray, f_W: FloatArray, tau_B: FloatArray, counts: FloatArray
+) -> int:
+    """Contact force on the body in W (N) and torque about the centre of mass in B (N m) from the feet
+    touching the deck or the ground, written into ``f_W`` (3,) and ``tau_B`` (3,); returns how many feet
+    touch, and the number on the deck and on the ground into ``counts`` (2,). ``y``: the state (at least
+    the first 13 entries); ``deck``: the deck now (``DK_*``).
+
+    A foot whose (x, y) is over the deck square and whose height is between the deck surface and
+    ``deck_depth`` below it presses on the deck, whose surface velocity at the foot is the deck's
+    velocity plus its turn (yaw rate x lever arm); any other foot below z = 0 presses on the ground.
+    Normal force ``max(k d + c d', 0)`` (d the penetration), friction ``-mu N v_t / sqrt(|v_t|^2 +
+    v_slip^2)`` against the foot's tangential velocity relative to the surface."""
+    for j in range(3):
+        f_W[j] = 0.0
+        tau_B[j] = 0.0
+    counts[0] = 0.0
+    counts[1] = 0.0
+    gh, gw = cp[CP_GEAR_H], cp[CP_GEAR_W]
+    reach = math.sqrt(gh * gh + 2.0 * gw * gw)
+    deck_on = deck[DK_ON] > 0.5
+    top = deck[DK_P + 2] if deck_on and deck[DK_P + 2] > 0.0 else 0.0
+    if y[2] - reach > top:
+        return 0  # no foot can reach a surface: the common case, kept cheap
+    qx, qy, qz, qw = y[6], y[7], y[8], y[9]
+    n2 = qx * qx + qy * qy + qz * qz + qw * qw
+    s = 2.0 / n2
+    R = np.empty((3, 3))
+    R[0, 0] = 1.0 - s * (qy * qy + qz * qz)
+    R[0, 1] = s * (qx * qy - qz * qw)
+    R[0, 2] = s * (qx * qz + qy * qw)
+    R[1, 0] = s * (qx * qy + qz * qw)
+    R[1, 1] = 1.0 - s * (qx * qx + qz * qz)
+    R[1, 2] = s * (qy * qz - qx * qw)
+    R[2, 0] = s * (qx * qz - qy * qw)
+    R[2, 1] = s * (qy * qz + qx * qw)
+    R[2, 2] = 1.0 - s * (qx * qx + qy * qy)
+    wx, wy, wz = y[10], y[11], y[12]
+    k, c, mu, vs = cp[CP_K], cp[CP_C], cp[CP_MU], cp[CP_V_SLIP]
+    cyaw, syaw = math.cos(deck[DK_YAW]), math.sin(deck[DK_YAW])
+    half = deck[DK_HALF]
+    touching = 0
+    for i in range(4):
+        rx = gw if (i == 0 or i == 3) else -gw
+        ry = gw if i < 2 else -gw
+        rz = -gh
+        # foot position and velocity in W: p + R r, v + R (w x r)
+        px = y[0] + R[0, 0] * rx + R[0, 1] * ry + R[0, 2] * rz
+        py = y[1] + R[1, 0] * rx + R[1, 1] * ry + R[1, 2] * rz
+        pz = y[2] + R[2, 0] * rx + R[2, 1] * ry + R[2, 2] * rz
+        cx = wy * rz - wz * ry
+        cy = wz * rx - wx * rz
+        cz = wx * ry - wy * rx
+        vx = y[3] + R[0, 0] * cx + R[0, 1] * cy + R[0, 2] * cz
+        vy = y[4] + R[1, 0] * cx + R[1, 1] * cy + R[1, 2] * cz
+        vz = y[5] + R[2, 0] * cx + R[2, 1] * cy + R[2, 2] * cz
+        surf_z = 0.0
+        svx = 0.0
+        svy = 0.0
+        svz = 0.0
+        on_deck = False
+        if deck_on:
+            dx = px - deck[DK_P]
+            dy = py - deck[DK_P + 1]
+            dz = deck[DK_P + 2]
+            if (
+                abs(cyaw * dx + syaw * dy) <= half
+                and abs(-syaw * dx + cyaw * dy) <= half
+                and dz - cp[CP_DECK_DEPTH] < pz <= dz
+            ):
+                on_deck = True
+                surf_z = dz
+                r = deck[DK_YAW_RATE]
+                svx = deck[DK_V] - r * dy
+                svy = deck[DK_V + 1] + r * dx
+                svz = deck[DK_V + 2]
+        if not on_deck and pz > 0.0:
+            continue
+        pen = surf_z - pz
+        normal = k * pen - c * (vz - svz)
+        if normal <= 0.0:
+            continue
+        touching += 1
+        counts[0 if on_deck else 1] += 1.0
+        tx = vx - svx
+        ty = vy - svy
+        scale = mu * normal / math.sqrt(tx * tx + ty * ty + vs * vs)
+        fx = -scale * tx
+        fy = -scale * ty
+        fz = normal
+        f_W[0] += fx
+        f_W[1] += fy
+        f_W[2] += fz
+        # torque in B: r x (R^T f)
+        bx = R[0, 0] * fx + R[1, 0] * fy + R[2, 0] * fz
+        by = R[0, 1] * fx + R[1, 1] * fy + R[2, 1] * fz
+        bz = R[0, 2] * fx + R[1, 2] * fy + R[2, 2] * fz
+        tau_B[0] += ry * bz - rz * by
+        tau_B[1] += rz * bx - rx * bz
+        tau_B[2] += rx * by - ry * bx
+    return touching
+
+
+@njit(cache=True)
+def _contact_deriv(
+    y: FloatArray,
+    f: FloatArray,
+    f_ext_W: FloatArray,
+    v_wind_W: FloatArray,
+    par: FloatArray,
+    deck: FloatArray,
+    cp: FloatArray,
+    fc: FloatArray,
+    tc: FloatArray,
+    out: FloatArray,
+) -> None:
+    """:func:`_rigid_body_deriv` plus the contact wrench."""
+    _rigid_body_deriv(y, f, f_ext_W, v_wind_W, par, out)
+    counts = np.empty(2)
+    if contact_wrench(y, deck, cp, fc, tc, counts) > 0:
+        m = par[PAR_MASS]
+        for j in range(3):
+            out[3 + j] += fc[j] / m
+            out[10 + j] += tc[j] / par[PAR_J + j]
+
+
+@njit(cache=True)
+def step_contact(
+    x: FloatArray,
+    motor_cmd_N: FloatArray,
+    f_ext_W: FloatArray,
+    v_wind_W: FloatArray,
+    params: FloatArray,
+    dt: float,
+    deck: FloatArray,
+    deck_tau: float,
+    cp: FloatArray,
+) -> FloatArray:
+    """:func:`step` with the contact of the feet with the deck and the ground. ``deck`` (N_DK,) is the
+    deck's state at its stamp and ``deck_tau`` the time of ``x`` since that stamp (s); each RK4 stage
+    sees the deck where it is at the stage's time."""
+    f_lo, f_hi = params[PAR_F_MIN], params[PAR_F_MAX]
+    f0 = x[IX_F : IX_F + 4].copy()
+    c = np.empty(4)
+    tau = np.empty(4)
+    for i in range(4):
+        c[i] = min(max(motor_cmd_N[i], f_lo), f_hi)
+        tau[i] = params[PAR_TAU_UP] if c[i] >= f0[i] else params[PAR_TAU_DOWN]
+    f_mid = np.empty(4)
+    f_end = np.empty(4)
+    _motor_thrust_at(f0, c, tau, 0.5 * dt, f_mid)
+    _motor_thrust_at(f0, c, tau, dt, f_end)
+
+    d0 = np.empty(N_DK)
+    dm = np.empty(N_DK)
+    d1 = np.empty(N_DK)
+    deck_at(deck, deck_tau, d0)
+    deck_at(deck, deck_tau + 0.5 * dt, dm)
+    deck_at(deck, deck_tau + dt, d1)
+    fc = np.empty(3)
+    tc = np.empty(3)
+
+    y0 = x[:13]
+    k1 = np.empty(13)
+    k2 = np.empty(13)
+    k3 = np.empty(13)
+    k4 = np.empty(13)
+    tmp = np.empty(13)
+    _contact_deriv(y0, f0, f_ext_W, v_wind_W, params, d0, cp, fc, tc, k1)
+    for j in range(13):
+        tmp[j] = y0[j] + 0.5 * dt * k1[j]
+    _contact_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, dm, cp, fc, tc, k2)
+    for j in range(13):
+        tmp[j] = y0[j] + 0.5 * dt * k2[j]
+    _contact_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, dm, cp, fc, tc, k3)
+    for j in range(13):
+        tmp[j] = y0[j] + dt * k3[j]
+    _contact_deriv(tmp, f_end, f_ext_W, v_wind_W, params, d1, cp, fc, tc, k4)
+
+    out = np.empty(NX)
+    h6 = dt / 6.0
+    for j in range(13):
+        out[j] = y0[j] + h6 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    nq = math.sqrt(out[6] ** 2 + out[7] ** 2 + out[8] ** 2 + out[9] ** 2)
+    for j in range(6, 10):
+        out[j] /= nq
+    for i in range(4):
+        out[IX_F + i] = f_end[i]
+    return out
 
 
 # --------------------------------------------------------------------------------------------------

@@ -423,16 +423,17 @@ class Odometry:
 class RangeFinderConfig:
     """A TeraRanger One-like time-of-flight distance sensor pointing along -z_B.
 
-    The real sensor measures 0.2 to 14 m; the simulator's default ``min_range_m`` is 0 because the
-    landing logic wants readings down to touchdown (set 0.2 to model the real blind zone).
+    The real sensor measures 0.2 to 14 m, and so does this one by default: closer than ``min_range_m``
+    (the blind zone) it reports ``-inf``, never a number, so the onboard land detector cannot rely on a
+    reading of ~0 at touchdown (set 0 for an ideal sensor).
     """
 
     rate_hz: float = 100.0
     """Sample rate (Hz)."""
     max_range_m: float = 14.0
     """Longest range reported (m)."""
-    min_range_m: float = 0.0
-    """Shortest range reported (m)."""
+    min_range_m: float = 0.2
+    """Shortest range reported (m): the blind zone."""
     noise_std_m: float = 0.02
     """White noise on the range (m)."""
     origin_B: tuple[float, float, float] = (0.0, 0.0, -0.10)
@@ -447,6 +448,10 @@ class RangeFinderConfig:
             raise ValueError("min_range_m must be below max_range_m")
 
 
+PAD_THICKNESS_M = 0.05
+"""Thickness of the pad (m): a ray starting less than this below its surface, over it, hits it at 0."""
+
+
 @njit(cache=True)
 def range_to_surface(
     o_W: FloatArray, d_W: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
@@ -458,8 +463,10 @@ def range_to_surface(
     if dz >= 0.0:
         return math.inf
     h = p_WP[2]
-    if o_W[2] >= h:
-        lam = (o_W[2] - h) / -dz
+    # a sensor at the feet of a vehicle standing on the pad sits a millimetre into it (the contact
+    # model's compression): within the pad's thickness it still sees the pad, at range 0
+    if o_W[2] >= h - PAD_THICKNESS_M:
+        lam = max(o_W[2] - h, 0.0) / -dz
         hx = o_W[0] + lam * d_W[0] - p_WP[0]
         hy = o_W[1] + lam * d_W[1] - p_WP[1]
         c, s = math.cos(yaw), math.sin(yaw)

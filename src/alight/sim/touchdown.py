@@ -76,6 +76,9 @@ def judge_contact(
     pad_size_m: float,
     gear_height: float,
     limits: ContactLimits,
+    *,
+    surface: str | None = None,
+    ground_ok: bool = False,
 ) -> Contact | None:
     """The contact at this instant, or None while the feet are above the surface below.
 
@@ -85,20 +88,30 @@ def judge_contact(
     take-off would count as a ground crash) and keep the first non-None answer. Nothing can be touched
     while ``p_WB[2] - gear_height`` is above the pad height, so a runner can skip the call (and the
     platform state) until then.
+
+    ``surface``: ``pad`` or ``ground`` when the caller knows what the feet touch (the simulator's
+    contact model reports it; a tilted vehicle's foot touches before its centre's gear height does):
+    that surface is judged without the geometric test. ``ground_ok``: a ground contact is judged on its
+    speeds and tilt, not a crash by itself (the landing of an abort's final action).
     """
     feet_z = float(p_WB[2]) - gear_height
-    if feet_z > platform.p_WP[2] and feet_z > 0.0:
-        return None  # the common case, kept cheap: above every surface
     p_xy = np.asarray(p_WB[:2], dtype=np.float64)
-    over_platform = bool(pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, -limits.gear_half_width))
-    if over_platform and feet_z <= float(platform.p_WP[2]):
-        surface = "pad"
+    if surface is None:
+        if feet_z > platform.p_WP[2] and feet_z > 0.0:
+            return None  # the common case, kept cheap: above every surface
+        over_platform = bool(
+            pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, -limits.gear_half_width)
+        )
+        if over_platform and feet_z <= float(platform.p_WP[2]):
+            surface = "pad"
+        elif feet_z <= 0.0:
+            surface = "ground"
+        else:
+            return None
+    if surface == "pad":
         v_rel = np.asarray(v_WB, dtype=np.float64) - platform.v_WP
-    elif feet_z <= 0.0:
-        surface = "ground"
-        v_rel = np.asarray(v_WB, dtype=np.float64)
     else:
-        return None
+        v_rel = np.asarray(v_WB, dtype=np.float64)
 
     vz = abs(float(v_rel[2]))
     vh = math.hypot(float(v_rel[0]), float(v_rel[1]))
@@ -106,10 +119,12 @@ def judge_contact(
     err = math.hypot(float(p_WB[0] - platform.p_WP[0]), float(p_WB[1] - platform.p_WP[1]))
 
     reasons = []
-    if surface == "ground":
+    if surface == "ground" and not ground_ok:
         reasons.append("ground")
     else:
-        if not pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, limits.gear_half_width):
+        if surface == "pad" and not pad_contains(
+            p_xy, platform.p_WP, platform.yaw, pad_size_m, limits.gear_half_width
+        ):
             reasons.append("off_footprint")
         if vz > limits.max_vertical_speed_mps:
             reasons.append("vertical_speed")
@@ -127,3 +142,43 @@ def judge_contact(
         rel_speed_mps=math.sqrt(vz * vz + vh * vh),
         tilt_rad=tilt,
     )
+
+
+def judge_settled(
+    p_WB: FloatArray,
+    R_WB: FloatArray,
+    platform: PlatformTruth,
+    pad_size_m: float,
+    limits: ContactLimits,
+    feet_on_deck: int,
+    feet_on_ground: int,
+    *,
+    ground_ok: bool = False,
+) -> tuple[Outcome, str]:
+    """The outcome once the vehicle has settled (``settle_s`` after the motors stopped): ``LANDED`` when
+    it still stands on the pad (feet on the deck, none on the ground, centre inside the footprint, tilt
+    within the limit), else ``CRASHED`` with why (``ground``, ``not_on_pad``, ``off_footprint``,
+    ``tipped_over``). ``ground_ok``: an abort's landing, where standing upright on the ground (or the
+    pad) is the safe end: ``LANDED`` then means "settled safely" and the caller scores it ``aborted``.
+    ``feet_on_deck``/``feet_on_ground``: what the contact model reports touching."""
+    tilt = math.acos(min(1.0, max(-1.0, float(R_WB[2, 2]))))
+    reasons = []
+    if tilt > math.radians(limits.max_tilt_deg):
+        reasons.append("tipped_over")
+    if ground_ok:
+        if feet_on_deck + feet_on_ground == 0:
+            reasons.append("not_on_a_surface")
+    else:
+        if feet_on_ground > 0:
+            reasons.append("ground")
+        if feet_on_deck == 0:
+            reasons.append("not_on_pad")
+        elif not pad_contains(
+            np.asarray(p_WB[:2], dtype=np.float64),
+            platform.p_WP,
+            platform.yaw,
+            pad_size_m,
+            limits.gear_half_width,
+        ):
+            reasons.append("off_footprint")
+    return (Outcome.CRASHED if reasons else Outcome.LANDED), ",".join(reasons)
