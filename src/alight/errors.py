@@ -15,3 +15,14 @@ class InputError(AlightError):
 
 class EstimationError(AlightError):
     """A filter was fed something it cannot use (non-finite data, wrong shapes)."""
+
+
+class ImageError(InputError, ValueError):
+    """What a detector was handed cannot be used: an array too large to be a camera frame, a grey image
+    for a detector that needs colour, or a capture time that is not a finite number of seconds. (An
+    empty, tiny or uniform image is not an error: detectors return no observation for it.)"""
+
+
+class MeasurementError(EstimationError, ValueError):
+    """A measurement or a time given to a filter is non-finite, outside the documented physical bounds
+    (:mod:`alight.estimation.guards`), or has a malformed covariance. The filter is left untouched."""
