@@ -160,7 +160,9 @@ def test_bad_or_empty_images_give_nothing(image: object) -> None:
         assert RedTargetDetector(RedTargetDetectorConfig(mitigation=mitigation)).detect(image, 0.0) == []
 
 
-@pytest.mark.parametrize("image", [np.full((480, 640), 128, np.uint8), np.full((48, 64, 1), 9, np.uint16), [[1, 2, 3]]])
+@pytest.mark.parametrize(
+    "image", [np.full((480, 640), 128, np.uint8), np.full((48, 64, 1), 9, np.uint16), [[1, 2, 3]]]
+)
 def test_grey_images_have_no_colour_to_find(image: object) -> None:
     assert RedTargetDetector.needs_colour
     assert RedTargetDetector().detect(image, 0.0) == []

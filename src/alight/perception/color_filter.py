@@ -441,8 +441,12 @@ class RedTargetDetector:
             x0, y0 = max(0, x - band), max(0, y - band)
             x1, y1 = min(W, x + w + band), min(H, y + h + band)
             region = np.zeros((y1 - y0, x1 - x0), np.uint8)
-            cv2.drawContours(region, [blob.contour - np.array([x0, y0], dtype=blob.contour.dtype)], -1, 255, -1)
-            outer = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_RECT, (2 * band + 1, 2 * band + 1)))
+            cv2.drawContours(
+                region, [blob.contour - np.array([x0, y0], dtype=blob.contour.dtype)], -1, 255, -1
+            )
+            outer = cv2.dilate(
+                region, cv2.getStructuringElement(cv2.MORPH_RECT, (2 * band + 1, 2 * band + 1))
+            )
             inner = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
             ring = cv2.subtract(outer, inner)
             n_ring = cv2.countNonZero(ring)

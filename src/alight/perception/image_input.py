@@ -84,7 +84,9 @@ def _as_array(image: Any) -> NDArray[Any] | None:
         return None
     if a.ndim == 3 and a.shape[2] not in (1, 3, 4):
         return None
-    if a.dtype != np.bool_ and not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
+    if a.dtype != np.bool_ and not (
+        np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)
+    ):
         return None
     if a.shape[0] * a.shape[1] > MAX_PIXELS:
         raise ImageError(
