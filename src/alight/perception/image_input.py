@@ -118,7 +118,8 @@ def to_u8(a: NDArray[Any]) -> U8Array:
         full = TWELVE_BIT_MAX if float(f.max()) <= TWELVE_BIT_MAX else float(np.iinfo(a.dtype).max)
         return np.clip(np.round(f * (255.0 / full)), 0, 255).astype(np.uint8)
     # wider integers: the values are taken as 0-255 already
-    return np.clip(a, 0, 255).astype(np.uint8)
+    out: U8Array = np.clip(a, 0, 255).astype(np.uint8)
+    return out
 
 
 def as_gray_u8(image: Any) -> U8Array | None:
