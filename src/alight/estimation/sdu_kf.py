@@ -59,15 +59,18 @@ case: detection latency) is brought to the filter's time by the shift above. ``d
 Initialisation: the first measurement sets ``x`` (shifted like the others) and ``P = p0 I`` (the paper's
 ``P = I``). ``initialized`` (the protocol's "has a heading and speed") follows the velocity estimator.
 
-Bad input (:mod:`alight.estimation.guards`; the paper has no gating). A measurement whose time, position or
-covariance is out of bounds (non-finite, beyond ``MAX_TIME_S`` / ``MAX_POSITION_M``, a covariance that is
-not symmetric positive semi-definite) raises :class:`alight.errors.MeasurementError` and changes nothing.
-One stamped more than ``FUTURE_TOLERANCE_S`` after the last ego sample (the filter's clock) is refused
-(``n_future``). Innovation gate: a measurement whose innovation is more than ``GATE_SIGMA`` (10) standard
-deviations from the prediction (``e^T S^-1 e > 100``) is refused (``n_gated``) before it touches the
-filter or the velocity estimator; after ``reinit_after_rejections`` refusals in a row the track is taken
-as lost and the filter restarts from the next measurement (``P = p0 I``), so a moved platform is not
-locked out.
+Bad input (:mod:`alight.estimation.guards`; the paper has no gating). A measurement whose time, position
+or covariance is out of bounds (non-finite, beyond ``MAX_TIME_S`` / ``MAX_POSITION_M``, a covariance that
+is not symmetric positive semi-definite) raises :class:`alight.errors.MeasurementError` and changes
+nothing. One stamped more than ``FUTURE_TOLERANCE_S`` after the filter's clock (the latest time given by
+:meth:`SduKalmanFilter.set_ego` or :meth:`SduKalmanFilter.predict`) is refused (``n_future``); without a
+clock it is taken, but cannot block the filter: ``reinit_after_rejections`` measurements in a row, in
+order among themselves, that are too old for the kept history mean the filter's time was the fault, and
+the filter restarts from them (``n_restarts``). Innovation gate: a measurement whose innovation is more
+than ``GATE_SIGMA`` (10) standard deviations from the prediction (``e^T S^-1 e > 100``) is refused
+(``n_gated``) before it touches the filter or the velocity estimator; after ``reinit_after_rejections``
+refusals in a row the track is taken as lost and the filter restarts from the next measurement (``P = p0
+I``), so a moved platform is not locked out.
 """
 
 from __future__ import annotations
@@ -199,8 +202,12 @@ class SduKalmanFilter:
         self.n_gated = 0
         """Measurements refused by the innovation gate."""
         self.n_future = 0
-        """Measurements stamped more than ``FUTURE_TOLERANCE_S`` after the last ego sample, refused."""
+        """Measurements stamped more than ``FUTURE_TOLERANCE_S`` after the filter's clock, refused."""
         self._consecutive_gated = 0
+        self.n_restarts = 0
+        """Restarts after a run of measurements too old for the filter's time (a future stamp)."""
+        self._t_clock = math.nan
+        self._late_t: list[float] = []
 
     # ---- inputs -----------------------------------------------------------------------------------
 
@@ -215,6 +222,7 @@ class SduKalmanFilter:
         if not math.isfinite(t + sum(p) + sum(v) + sum(a)):
             raise EstimationError(f"SduKalmanFilter.set_ego: non-finite ego state at t={t}")
         check_time(t, "SduKalmanFilter.set_ego")
+        self._t_clock = t if not t < self._t_clock else self._t_clock
         if math.isnan(self._tf):
             self._tf = t
         elif t > self._tf:
@@ -273,6 +281,7 @@ class SduKalmanFilter:
     def predict(self, t: float) -> None:
         """Move the filter on to ``t`` (s) with the held inputs; earlier times are ignored."""
         t = check_time(t, "SduKalmanFilter.predict")
+        self._t_clock = t if not t < self._t_clock else self._t_clock
         if math.isnan(self._tf):
             self._tf = float(t)
             self._hold_inputs()
@@ -331,7 +340,7 @@ class SduKalmanFilter:
         check_time(t_c, "SduKalmanFilter.update")
         check_vector(measurement.p_WP, 3, MAX_POSITION_M, "p_WP", "SduKalmanFilter.update")
         check_covariance(cov, 3, "SduKalmanFilter.update", "cov_p_WP")
-        if self._et and t_c > self._et[-1] + FUTURE_TOLERANCE_S:
+        if t_c > self._t_clock + FUTURE_TOLERANCE_S:  # False without a clock (NaN)
             self.n_future += 1
             return False
         if math.isnan(self._tf):
@@ -340,7 +349,17 @@ class SduKalmanFilter:
             self.predict(t_c)
         if t_c < self._tf - c.history_s:
             self.n_too_old += 1
-            return False
+            # a run of them, in order: the filter's time came from a measurement stamped in the future
+            if self._late_t and t_c < self._late_t[-1]:
+                self._late_t.clear()
+            self._late_t.append(t_c)
+            if len(self._late_t) < c.reinit_after_rejections:
+                return False
+            counters = (self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts + 1)
+            self.reset()
+            self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts = counters
+            return self.update(measurement)
+        self._late_t.clear()
         pb = self._ego_position(t_c)
         zx, zy = pb[0] - p[0], pb[1] - p[1]  # x_obs: the UAV relative to the pad at t_c
         dt_obs = (self._tf - t_c) if c.delay_s is None else c.delay_s
