@@ -35,7 +35,13 @@ import numpy as np
 from numba import njit
 
 from alight.errors import EstimationError, MeasurementError
-from alight.estimation.guards import GATE_SIGMA, MAX_POSITION_M, MAX_SPEED_MPS, check_time
+from alight.estimation.guards import (
+    FUTURE_TOLERANCE_S,
+    GATE_SIGMA,
+    MAX_POSITION_M,
+    MAX_SPEED_MPS,
+    check_time,
+)
 from alight.rotation_kernels import quat_to_R
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray
 
@@ -719,6 +725,15 @@ class EgoEkf:
     Call :meth:`initialize` once, then :meth:`predict_imu` for every IMU sample (in time order) and
     :meth:`update_odometry` for every odometry message. Cost (one core, after numba compilation): a few
     microseconds per IMU sample, see ``estimation/README.md``.
+
+    Bad input (:mod:`alight.estimation.guards`): odometry with a non-finite value, a position beyond
+    ``MAX_POSITION_M``, a speed beyond ``MAX_SPEED_MPS``, a time beyond ``MAX_TIME_S`` or a quaternion
+    that is not a rotation (norm outside [0.5, 2]: zero, NaN) raises
+    :class:`alight.errors.MeasurementError` and leaves the filter untouched; odometry stamped more than
+    ``FUTURE_TOLERANCE_S`` after the last IMU sample is refused; with ``odometry_gate`` a position more
+    than ``GATE_SIGMA`` standard deviations from the prediction is refused, and ``odometry_reset_after``
+    refusals in a row restart the filter at the odometry pose. :meth:`predict_imu_many` checks that
+    its arrays hold ``n`` samples before the compiled loop reads them.
     """
 
     def __init__(self, config: EgoEkfConfig | None = None) -> None:
@@ -759,7 +774,8 @@ class EgoEkf:
         self.n_odometry_updates = 0
         """Odometry messages fused."""
         self.n_odometry_rejected = 0
-        """Odometry messages rejected as too old (see ``EgoEkfConfig.max_odometry_lag``)."""
+        """Odometry messages rejected as too old (see ``EgoEkfConfig.max_odometry_lag``) or stamped more
+        than ``FUTURE_TOLERANCE_S`` after the last IMU sample (:mod:`alight.estimation.guards`)."""
         self.last_nis = math.nan
         """Normalised innovation squared of the last odometry update (chi-square, 6 or 9 dof)."""
         self.n_odometry_gated = 0
@@ -944,6 +960,11 @@ class EgoEkf:
             )
         lag = self._t - t
         if lag > self.config.max_odometry_lag:
+            self.n_odometry_rejected += 1
+            return False
+        if self._has_imu and -lag > FUTURE_TOLERANCE_S:
+            # newer than the IMU clock by more than the tolerance: a bad stamp, which would otherwise
+            # carry the filter ahead of every IMU sample to come
             self.n_odometry_rejected += 1
             return False
         if lag < 0.0:
