@@ -282,6 +282,10 @@ class SduKalmanFilter:
         """Move the filter on to ``t`` (s) with the held inputs; earlier times are ignored."""
         t = check_time(t, "SduKalmanFilter.predict")
         self._t_clock = t if not t < self._t_clock else self._t_clock
+        self._move_to(t)
+
+    def _move_to(self, t: float) -> None:
+        """:meth:`predict` without setting the clock (a measurement's own time is no clock)."""
         if math.isnan(self._tf):
             self._tf = float(t)
             self._hold_inputs()
@@ -344,9 +348,9 @@ class SduKalmanFilter:
             self.n_future += 1
             return False
         if math.isnan(self._tf):
-            self.predict(t_c)
+            self._move_to(t_c)
         elif t_c > self._tf:
-            self.predict(t_c)
+            self._move_to(t_c)
         if t_c < self._tf - c.history_s:
             self.n_too_old += 1
             # a run of them, in order: the filter's time came from a measurement stamped in the future
