@@ -250,7 +250,7 @@ def run_ego(n_bad: int, seed: int, limit_s: float) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name in sorted(EGO_REGISTRY):
         rng = np.random.default_rng(seed)
-        ekf = EGO_REGISTRY[name]()
+        ekf: Any = EGO_REGISTRY[name]()
         q = np.array([0.0, 0.0, 0.0, 1.0])
         ekf.initialize(0.0, np.zeros(3), np.zeros(3), q)
         counts = {"bad": 0, "crashes": 0, "hangs": 0, "refused": 0, "nan_states": 0}
@@ -319,7 +319,7 @@ def run(
     """The whole harness; the JSON summary as a dict."""
     signal.signal(signal.SIGALRM, _on_alarm)
     t0 = time.perf_counter()
-    summary = {
+    summary: dict[str, Any] = {
         "frames_per_detector": n_frames,
         "bad_measurements_per_estimator": n_measurements,
         "seed": seed,

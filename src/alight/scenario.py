@@ -344,7 +344,7 @@ def scenario_from_dict(data: Any, source: str = "scenario") -> Scenario:
         raise ConfigError(_format_error(source, err)) from None
 
 
-class UniqueKeyLoader(yaml.SafeLoader):  # type: ignore[misc]  # PyYAML has no stubs here
+class UniqueKeyLoader(yaml.SafeLoader):  # type: ignore[misc,unused-ignore]  # PyYAML has no stubs here
     """PyYAML's safe loader, refusing a key given twice in one mapping (the plain loader keeps the last
     one silently, so ``speed_mps: 2`` ... ``speed_mps: 20`` would fly the second)."""
 
