@@ -124,9 +124,17 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     mission_fn = os.environ.get(MISSION_FN_ENV) or None
     if mission_fn is not None:
         print(f"alight campaign: missions are {mission_fn} (from {MISSION_FN_ENV})", file=sys.stderr)
+    campaign: Any = args.campaign
+    if args.limit is not None:
+        from alight.campaign.spec import MAX_MISSIONS, count_missions, load_campaign, read_campaign_spec
+
+        # A campaign too big to expand whole can still fly its first missions: expand only those. Below
+        # the cap the whole campaign is expanded as always (resuming with another --limit stays possible).
+        if count_missions(read_campaign_spec(args.campaign)[0]) > MAX_MISSIONS:
+            campaign = load_campaign(args.campaign, limit=args.limit)
     try:
         result = run_campaign(
-            args.campaign,
+            campaign,
             args.out,
             engine=args.engine,
             workers=args.workers,

@@ -20,3 +20,14 @@ class EstimationError(AlightError):
 class ReplayError(InputError):
     """A recorded flight (ULog, ROS bag, MCAP) cannot be read or replayed: missing, truncated, corrupt,
     or without the topics the replay needs."""
+
+
+class ImageError(InputError, ValueError):
+    """What a detector was handed cannot be used: an array too large to be a camera frame, a grey image
+    for a detector that needs colour, or a capture time that is not a finite number of seconds. (An
+    empty, tiny or uniform image is not an error: detectors return no observation for it.)"""
+
+
+class MeasurementError(EstimationError, ValueError):
+    """A measurement or a time given to a filter is non-finite, outside the documented physical bounds
+    (:mod:`alight.estimation.guards`), or has a malformed covariance. The filter is left untouched."""

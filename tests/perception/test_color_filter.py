@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
+from alight.errors import ImageError
 from alight.perception import Detector
 from alight.perception.color_filter import (
     BlobObservation,
@@ -149,7 +150,7 @@ def test_lighting_tolerance_follows_the_thresholds() -> None:
         np.zeros((480, 640, 3), np.float32),
         np.zeros((480, 640, 2), np.uint8),
         None,
-        [[1, 2, 3]],
+        [[1, 2, 3], [4]],
         "image.png",
     ],
     ids=["grey", "grey_bgr", "empty", "tiny", "float", "two_channels", "none", "list", "str"],
@@ -157,6 +158,47 @@ def test_lighting_tolerance_follows_the_thresholds() -> None:
 def test_bad_or_empty_images_give_nothing(image: object) -> None:
     for mitigation in ("none", "gate+shape"):
         assert RedTargetDetector(RedTargetDetectorConfig(mitigation=mitigation)).detect(image, 0.0) == []
+
+
+@pytest.mark.parametrize(
+    "image", [np.full((480, 640), 128, np.uint8), np.full((48, 64, 1), 9, np.uint16), [[1, 2, 3]]]
+)
+def test_grey_images_have_no_colour_to_find(image: object) -> None:
+    assert RedTargetDetector.needs_colour
+    assert RedTargetDetector().detect(image, 0.0) == []
+
+
+def test_a_uniformly_red_frame_and_noise_are_not_targets() -> None:
+    det = RedTargetDetector()
+    red = np.zeros((480, 640, 3), np.uint8)
+    red[..., 2] = 200
+    assert det.detect(red, 0.0) == []  # the paper's rule reported it with quality 1.0
+    rng = np.random.default_rng(7)
+    for _ in range(10):
+        noise = rng.integers(0, 256, (480, 640, 3), dtype=np.uint8)
+        noise[..., 2] = np.maximum(noise[..., 2], 200)  # reddish noise: speckle clusters of 100+ px
+        assert det.detect(noise, 0.0) == []
+    # ... while a target cut by the frame's edge (close range) or in a corner is still found
+    for centre, r in [((0, 240), 60), ((0, 0), 150), ((320, 240), 300)]:
+        img = np.full((480, 640, 3), 90, np.uint8)
+        cv2.circle(img, centre, r, (20, 20, 200), -1)
+        assert len(det.detect(img, 0.0)) == 1, (centre, r)
+
+
+def test_sixteen_bit_and_float_colour_images_are_converted() -> None:
+    det = RedTargetDetector()
+    img = disc_image(300, 200, 30)
+    ref = det.detect(img, 0.0)
+    assert len(ref) == 1
+    for other in (img.astype(np.uint16) * 257, img.astype(np.uint16) * 16, img.astype(np.float32) / 255.0):
+        obs = det.detect(other, 0.0)
+        assert len(obs) == 1 and np.allclose(obs[0].pixels, ref[0].pixels, atol=0.5)
+
+
+@pytest.mark.parametrize("t", [math.nan, math.inf, "soon", None])
+def test_capture_time_must_be_finite(t: object) -> None:
+    with pytest.raises(ImageError, match="capture time"):
+        RedTargetDetector().detect(disc_image(300, 200, 30), t)  # type: ignore[arg-type]
 
 
 def test_alpha_channel_and_non_contiguous_views_are_read() -> None:

@@ -16,6 +16,13 @@ Expansion order (it fixes the condition ids ``c000``, ``c001``, ... and through 
 
 Missions are ordered condition by condition, replicate by replicate, preset by preset, so a campaign
 stopped early holds paired results of every preset.
+
+Size: the number of missions (conditions x ``seeds_per_condition`` x presets, the conditions being the
+grid's product plus the explicit ones, times ``sample.n``) is counted from the file before anything is
+expanded, and a campaign of more than :data:`MAX_MISSIONS` is refused with one line. Each planned mission
+holds its whole scenario (10-25 kB, 0.3 ms to expand), so the cap keeps the expansion under a minute and a
+few GB; a bigger study is several campaigns. With ``limit`` (``alight campaign --limit N``) only the
+conditions of the first ``N`` missions are expanded, and the cap applies to those.
 """
 
 from __future__ import annotations
@@ -29,15 +36,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from alight.campaign.seeds import mission_seed, sample_rng
 from alight.errors import ConfigError
-from alight.scenario import Scenario, load_scenario, scenario_from_dict
+from alight.scenario import Scenario, load_scenario, load_yaml_text, scenario_from_dict
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+MAX_MISSIONS = 100_000
+"""Largest number of missions one campaign file may expand to (see "Size" in the module docstring)."""
 
 _RESERVED = {
     "preset": "choose presets with the campaign's 'presets' list",
@@ -249,10 +258,37 @@ def _base_scenario(spec: CampaignSpec, source: str, base_dir: Path) -> Scenario:
     return scenario_from_dict(spec.base, f"{source}: base")
 
 
+def count_missions(spec: CampaignSpec) -> int:
+    """How many missions ``spec`` expands to, from the sizes alone (nothing is expanded): the grid's
+    product plus the explicit conditions (at least one condition), times ``sample.n``, times
+    ``seeds_per_condition``, times the presets. Exact for a valid spec (``expand_campaign`` refuses a
+    repeated condition rather than dropping it)."""
+    n_conditions = (math.prod(len(v) for v in spec.grid.values()) if spec.grid else 0) + len(spec.conditions)
+    n_conditions = max(n_conditions, 1)
+    if spec.sample is not None:
+        n = spec.sample.get("n")
+        if isinstance(n, int) and not isinstance(n, bool) and n >= 1:
+            n_conditions *= n
+    n_presets = len(spec.presets) if spec.presets is not None else 1
+    return n_conditions * spec.seeds_per_condition * n_presets
+
+
 def expand_campaign(
-    spec: CampaignSpec, *, source: str = "campaign", base_dir: Path | None = None
+    spec: CampaignSpec, *, source: str = "campaign", base_dir: Path | None = None, limit: int | None = None
 ) -> tuple[list[Condition], list[PlannedMission], list[str], list[str]]:
-    """Conditions, missions, swept parameter paths and presets of ``spec``; raises ``ConfigError``."""
+    """Conditions, missions, swept parameter paths and presets of ``spec``; raises ``ConfigError``.
+
+    ``limit``: expand only the conditions of the first ``limit`` missions (and return those missions).
+    More than :data:`MAX_MISSIONS` missions (after ``limit``) is a ``ConfigError``."""
+    if limit is not None and limit < 1:
+        raise ConfigError(f"{source}: the mission limit must be >= 1, got {limit}")
+    total = count_missions(spec)
+    wanted = total if limit is None else min(total, limit)
+    if wanted > MAX_MISSIONS:
+        raise ConfigError(
+            f"{source}: the campaign expands to {total:,} missions, more than the {MAX_MISSIONS:,} "
+            "one campaign may hold; split it (or fly its first missions with --limit)"
+        )
     from alight.mission.presets import PRESETS  # late import: presets import the blocks
 
     base = _base_scenario(spec, source, base_dir or Path.cwd())
@@ -304,13 +340,19 @@ def expand_campaign(
                 raise ConfigError(f"{source}: '{a}' and '{b}' overlap: sweep one or the other")
 
     # -- the conditions -------------------------------------------------------------------------------------
+    # conditions needed for the first `wanted` missions (all of them without a limit); the grid's product
+    # is walked lazily so that a limit on a huge grid expands only its head
+    per_condition = spec.seeds_per_condition * len(presets)
+    n_needed = -(-wanted // per_condition)
+    n_base_needed = -(-n_needed // n_draws) if n_draws else n_needed
     raw_conditions: list[dict[str, Any]] = []
     if spec.grid:
         keys = list(spec.grid)
         raw_conditions += [
-            dict(zip(keys, combo, strict=True)) for combo in itertools.product(*spec.grid.values())
+            dict(zip(keys, combo, strict=True))
+            for combo in itertools.islice(itertools.product(*spec.grid.values()), n_base_needed)
         ]
-    raw_conditions += [dict(c) for c in spec.conditions]
+    raw_conditions += [dict(c) for c in spec.conditions[: max(0, n_base_needed - len(raw_conditions))]]
     seen: dict[str, int] = {}
     for i, cond in enumerate(raw_conditions):
         key = json.dumps(cond, sort_keys=True)
@@ -362,6 +404,8 @@ def expand_campaign(
         key = tuple((p, repr(v)) for p, v in sorted(cond.params.items()) if p not in spec.same_seeds_across)
         branch = seed_index.setdefault(key, len(seed_index)) if spec.same_seeds_across else cond.index
         for r in range(spec.seeds_per_condition):
+            if len(missions) >= wanted:
+                break  # the limit is reached: the rest is never expanded
             seed = mission_seed(spec.seed, branch, r)
             for preset in presets:
                 mid = mission_id(cond.condition_id, preset, r)
@@ -373,7 +417,7 @@ def expand_campaign(
                 missions.append(
                     PlannedMission(mid, cond.condition_id, cond.index, preset, r, seed, cond.params, scenario)
                 )
-    return conditions, missions, paths, presets
+    return conditions, missions[:wanted], paths, presets
 
 
 def campaign_from_dict(
@@ -383,10 +427,12 @@ def campaign_from_dict(
     base_dir: Path | None = None,
     text: str | None = None,
     path: Path | None = None,
+    limit: int | None = None,
 ) -> Campaign:
     """Validate and expand a campaign mapping; any problem becomes one ``ConfigError`` line.
 
-    ``base_dir`` resolves a ``base`` given as a file name (default: the working directory).
+    ``base_dir`` resolves a ``base`` given as a file name (default: the working directory); ``limit``
+    expands only the first ``limit`` missions (:func:`expand_campaign`).
     """
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: expected a mapping of campaign keys, got {type(data).__name__}")
@@ -394,20 +440,36 @@ def campaign_from_dict(
         spec = CampaignSpec.model_validate(data)
     except ValidationError as err:
         raise ConfigError(_format_validation(source, err)) from None
-    conditions, missions, paths, presets = expand_campaign(spec, source=source, base_dir=base_dir)
+    conditions, missions, paths, presets = expand_campaign(
+        spec, source=source, base_dir=base_dir, limit=limit
+    )
     return Campaign(spec, conditions, missions, paths, presets, source=path, text=text)
 
 
-def load_campaign(path: str | Path) -> Campaign:
-    """Read, validate and expand a campaign YAML file; any problem becomes one ``ConfigError`` line."""
+def read_campaign_spec(path: str | Path) -> tuple[CampaignSpec, Any, str]:
+    """The campaign file's validated spec, its data and text, without expanding it; ``ConfigError``."""
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"{p}: no such campaign file")
     try:
         text = p.read_text(encoding="utf-8")
-        data = yaml.safe_load(text)
-    except (yaml.YAMLError, UnicodeDecodeError) as err:
-        line = getattr(getattr(err, "problem_mark", None), "line", None)
-        where = f" (line {line + 1})" if line is not None else ""
-        raise ConfigError(f"{p}: not valid YAML{where}: {str(err).splitlines()[0]}") from None
-    return campaign_from_dict(data, str(p), base_dir=p.resolve().parent, text=text, path=p)
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{p}: not valid YAML: not UTF-8 text ({err.reason})") from None
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read the campaign file: {err.strerror or err}") from None
+    data = load_yaml_text(text, str(p), "campaign")
+    if not isinstance(data, dict):
+        raise ConfigError(f"{p}: expected a mapping of campaign keys, got {type(data).__name__}")
+    try:
+        spec = CampaignSpec.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(_format_validation(str(p), err)) from None
+    return spec, data, text
+
+
+def load_campaign(path: str | Path, *, limit: int | None = None) -> Campaign:
+    """Read, validate and expand a campaign YAML file (only its first ``limit`` missions when given);
+    any problem becomes one ``ConfigError`` line."""
+    p = Path(path)
+    _, data, text = read_campaign_spec(p)
+    return campaign_from_dict(data, str(p), base_dir=p.resolve().parent, text=text, path=p, limit=limit)

@@ -97,9 +97,16 @@ def cell(value: Any) -> str:
     return " ".join(str(value).split())
 
 
-def parse_float(text: str) -> float | None:
-    """A numeric cell back as a float (None for an empty cell)."""
-    return float(text) if text != "" else None
+def parse_float(text: str | None) -> float | None:
+    """A numeric cell back as a float; None for an empty or missing cell and for one that is not a number
+    (a damaged results.csv: hand-edited, or a disk error), which then counts as missing, like an empty one,
+    rather than stopping the summary, the report or a resume. ``nan`` and ``inf`` read as themselves."""
+    if text is None or text == "":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return None
 
 
 def _line(values: Sequence[str]) -> str:

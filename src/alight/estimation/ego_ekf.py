@@ -34,7 +34,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from alight.errors import EstimationError
+from alight.errors import EstimationError, MeasurementError
+from alight.estimation.guards import (
+    FUTURE_TOLERANCE_S,
+    GATE_SIGMA,
+    MAX_POSITION_M,
+    MAX_SPEED_MPS,
+    check_time,
+)
 from alight.rotation_kernels import quat_to_R
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray
 
@@ -653,6 +660,12 @@ class EgoEkfConfig:
     the estimated velocity and body rates); older odometry is rejected and counted."""
     max_step: float = 0.01
     """Longest single propagation step (s); longer IMU gaps are split."""
+    odometry_gate: bool = True
+    """Refuse odometry whose position innovation is more than ``GATE_SIGMA`` (10) standard deviations from
+    the prediction (Mahalanobis, ``P_pp + R_pp``; :mod:`alight.estimation.guards`)."""
+    odometry_reset_after: int = 10
+    """Gated odometry messages in a row after which the filter restarts at the odometry's pose (the
+    estimate, not the odometry, was wrong: e.g. after a bad IMU stretch)."""
     gravity: float = GRAVITY_MPS2
     """Magnitude of gravity (m/s^2)."""
 
@@ -670,6 +683,8 @@ class EgoEkfConfig:
             "max_odometry_lag",
         ):
             _check_nonneg(name, getattr(self, name))
+        if self.odometry_reset_after < 1:
+            raise ValueError(f"odometry_reset_after must be >= 1, got {self.odometry_reset_after}")
         for name in ("odometry_position_std", "odometry_attitude_std", "odometry_velocity_std", "max_step"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
@@ -710,6 +725,15 @@ class EgoEkf:
     Call :meth:`initialize` once, then :meth:`predict_imu` for every IMU sample (in time order) and
     :meth:`update_odometry` for every odometry message. Cost (one core, after numba compilation): a few
     microseconds per IMU sample, see ``estimation/README.md``.
+
+    Bad input (:mod:`alight.estimation.guards`): odometry with a non-finite value, a position beyond
+    ``MAX_POSITION_M``, a speed beyond ``MAX_SPEED_MPS``, a time beyond ``MAX_TIME_S`` or a quaternion
+    that is not a rotation (norm outside [0.5, 2]: zero, NaN) raises
+    :class:`alight.errors.MeasurementError` and leaves the filter untouched; odometry stamped more than
+    ``FUTURE_TOLERANCE_S`` after the last IMU sample is refused; with ``odometry_gate`` a position more
+    than ``GATE_SIGMA`` standard deviations from the prediction is refused, and ``odometry_reset_after``
+    refusals in a row restart the filter at the odometry pose. :meth:`predict_imu_many` checks that
+    its arrays hold ``n`` samples before the compiled loop reads them.
     """
 
     def __init__(self, config: EgoEkfConfig | None = None) -> None:
@@ -750,9 +774,15 @@ class EgoEkf:
         self.n_odometry_updates = 0
         """Odometry messages fused."""
         self.n_odometry_rejected = 0
-        """Odometry messages rejected as too old (see ``EgoEkfConfig.max_odometry_lag``)."""
+        """Odometry messages rejected as too old (see ``EgoEkfConfig.max_odometry_lag``) or stamped more
+        than ``FUTURE_TOLERANCE_S`` after the last IMU sample (:mod:`alight.estimation.guards`)."""
         self.last_nis = math.nan
         """Normalised innovation squared of the last odometry update (chi-square, 6 or 9 dof)."""
+        self.n_odometry_gated = 0
+        """Odometry messages refused by the position gate (``EgoEkfConfig.odometry_gate``)."""
+        self.n_odometry_resets = 0
+        """Restarts at the odometry pose after ``odometry_reset_after`` gated messages in a row."""
+        self._consecutive_gated = 0
 
     def initialize(
         self,
@@ -837,6 +867,19 @@ class EgoEkf:
         n = len(ts) if n is None else int(n)
         if n == 0:
             return
+        # the compiled kernel reads rows 0..n-1 of every array unchecked: check their sizes here
+        if not (
+            0 < n <= len(ts)
+            and np.ndim(f_B) == 2
+            and np.ndim(w_B) == 2
+            and np.shape(f_B)[1] == 3
+            and np.shape(w_B)[1] == 3
+            and n <= min(len(f_B), len(w_B))
+        ):
+            raise MeasurementError(
+                f"EgoEkf.predict_imu_many: n={n} samples need ts (>= n,), f_B and w_B (>= n, 3), got "
+                f"{np.shape(ts)}, {np.shape(f_B)}, {np.shape(w_B)}"
+            )
         if not self._has_imu:
             self._imu[0:3] = f_B[0]
             self._imu[3:6] = w_B[0]
@@ -902,8 +945,26 @@ class EgoEkf:
             and (Rm is self._R9 or Rm is self._R6 or math.isfinite(float(Rm.sum())))  # configured: checked
         ):
             raise EstimationError(f"EgoEkf.update_odometry: non-finite measurement or covariance at t={t}")
+        # physical bounds (alight.estimation.guards): a position, a unit quaternion, a speed, a time
+        check_time(t, "EgoEkf.update_odometry")
+        zp = self._z[0:3]
+        nq2 = float(self._z[3:7] @ self._z[3:7])
+        if not (0.25 <= nq2 <= 4.0):  # a rotation's quaternion has norm 1; renormalised below
+            raise MeasurementError(f"EgoEkf.update_odometry: q_WB {self._z[3:7].tolist()} is not a rotation")
+        if float(zp @ zp) > MAX_POSITION_M**2 or (
+            m == 9 and float(self._z[7:10] @ self._z[7:10]) > MAX_SPEED_MPS**2
+        ):
+            raise MeasurementError(
+                f"EgoEkf.update_odometry: position beyond {MAX_POSITION_M:g} m or speed beyond "
+                f"{MAX_SPEED_MPS:g} m/s at t={t}"
+            )
         lag = self._t - t
         if lag > self.config.max_odometry_lag:
+            self.n_odometry_rejected += 1
+            return False
+        if self._has_imu and -lag > FUTURE_TOLERANCE_S:
+            # newer than the IMU clock by more than the tolerance: a bad stamp, which would otherwise
+            # carry the filter ahead of every IMU sample to come
             self.n_odometry_rejected += 1
             return False
         if lag < 0.0:
@@ -916,6 +977,8 @@ class EgoEkf:
                 self.predict_imu(t, f, self._x[13:16].copy())
         elif lag > 0.0:
             self._move_forward(lag, m)
+        if self.config.odometry_gate and self._gated(Rm):
+            return False
         status = ego_update_kernel(self._x, self._P, self._z, Rm, m, self._info)
         if status == NOT_FINITE:
             raise EstimationError(f"EgoEkf.update_odometry: non-finite measurement or covariance at t={t}")
@@ -926,6 +989,39 @@ class EgoEkf:
         self.last_nis = float(self._info[0])
         self.n_odometry_updates += 1
         self._state_cache = None
+        return True
+
+    def _gated(self, Rm: FloatArray) -> bool:
+        """The position gate on ``self._z`` (module config); True when the message is refused. After
+        ``odometry_reset_after`` refusals in a row, restarts at the odometry pose instead."""
+        e = self._z[0:3] - self._x[0:3]
+        S = self._P[0:3, 0:3] + Rm[0:3, 0:3]
+        try:
+            d2 = float(e @ np.linalg.solve(S, e))
+        except np.linalg.LinAlgError:
+            return False  # the update kernel reports a singular innovation covariance
+        if not d2 > GATE_SIGMA**2:
+            self._consecutive_gated = 0
+            return False
+        self.n_odometry_gated += 1
+        self._consecutive_gated += 1
+        if self._consecutive_gated < self.config.odometry_reset_after:
+            return True
+        # the estimate drifted away from every message: restart at the odometry's pose
+        n_updates, n_rejected, n_gated = (
+            self.n_odometry_updates,
+            self.n_odometry_rejected,
+            self.n_odometry_gated,
+        )
+        resets = self.n_odometry_resets + 1
+        t, q = self._t, self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
+        self.initialize(t, self._z[0:3].copy(), self._x[3:6].copy(), q)
+        self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated = (
+            n_updates,
+            n_rejected,
+            n_gated,
+        )
+        self.n_odometry_resets = resets
         return True
 
     def _move_forward(self, lag: float, m: int) -> None:

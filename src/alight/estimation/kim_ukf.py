@@ -81,6 +81,14 @@ from scipy.special import chdtri
 from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.errors import ConfigError, EstimationError
+from alight.estimation.guards import (
+    FUTURE_TOLERANCE_S,
+    MAX_POSITION_M,
+    MAX_TIME_S,
+    check_covariance,
+    check_time,
+    check_vector,
+)
 from alight.estimation.sigma_points import (
     CubatureSigmaPoints,
     MerweScaledSigmaPoints,
@@ -657,9 +665,7 @@ class KimUkf:
     def predict(self, t: float) -> None:
         """Record the caller's clock ``t`` (s); the filter stays at its last measurement (see the module
         docstring)."""
-        if not math.isfinite(t):
-            raise EstimationError(f"KimUkf.predict: time must be finite, got {t}")
-        self._t_now = float(t)
+        self._t_now = check_time(t, "KimUkf.predict")
 
     def _prior(
         self, t: float, p_new: FloatArray, v_new: FloatArray, eta: FloatArray
@@ -707,6 +713,14 @@ class KimUkf:
             raise EstimationError("KimUkf.update: a finite p_WP (3,) and cov_p_WP (3, 3) are needed")
         if not math.isfinite(t):
             raise EstimationError(f"KimUkf.update: non-finite time {t}")
+        # bounds of alight.estimation.guards: time, position, covariance; a measurement from the future
+        # (after the clock given to predict, beyond the tolerance) is refused like one out of order
+        check_time(t, "KimUkf.update")
+        check_vector(p, 3, MAX_POSITION_M, "p_WP", "KimUkf.update")
+        check_covariance(cov, 3, "KimUkf.update", "cov_p_WP")
+        if t > self._t_now + FUTURE_TOLERANCE_S:
+            self.n_invalid += 1
+            return False
         if self._has and t < self._t:
             self.n_out_of_order += 1
             return False
@@ -802,6 +816,9 @@ class KimUkf:
         t = float(t)
         z = np.asarray(px, dtype=np.float64).ravel()
         if z.shape != (2,) or not np.isfinite(z).all() or not math.isfinite(t):
+            self.n_invalid += 1
+            return False
+        if abs(t) > MAX_TIME_S or t > self._t_now + FUTURE_TOLERANCE_S:  # alight.estimation.guards
             self.n_invalid += 1
             return False
         if self._has and t < self._t:
@@ -1029,6 +1046,7 @@ class KimUkf:
     def state(self, t: float) -> PlatformEstimate:
         """The platform at ``t`` (s) in W, extrapolated from the last measurement along its turn
         (``turn_model``) or at constant velocity."""
+        t = check_time(t, "KimUkf.state")
         p, v, cov = self._world(t)
         a = np.zeros(3)
         if self.config.turn_model and self.turn_rate.rate != 0.0:

@@ -32,6 +32,17 @@ Robustness: ``v_t >= 0`` is kept by the exact reparametrisation ``(theta, v_t) -
 chi-square quantile ``gate_probability`` is rejected; after ``reinit_after_rejections`` consecutive
 rejections the track is assumed lost and the filter re-initialises from those rejected measurements.
 Non-finite measurements raise :class:`alight.errors.EstimationError` and leave the filter untouched.
+
+Bad input (:mod:`alight.estimation.guards`): a time beyond ``MAX_TIME_S``, a position beyond
+``MAX_POSITION_M`` or a covariance that is not symmetric positive semi-definite raises
+:class:`alight.errors.MeasurementError` (an ``EstimationError``) and leaves the filter untouched. A
+measurement stamped more than ``FUTURE_TOLERANCE_S`` after the clock given to :meth:`PlatformEkf.predict`
+is refused (``n_future``). Without a clock, a measurement from the future is taken, but it cannot block
+the filter: when ``reinit_after_rejections`` measurements in a row, in order among themselves, arrive
+more than ``FUTURE_TOLERANCE_S`` before the filter's time, the filter's time was the fault and the track
+restarts from them (``n_reinitializations``). :meth:`PlatformEkf.state` integrates at most
+``MAX_HORIZON_S`` past the last measurement (bounded work for any query time); further out it reports the
+estimate at that horizon with the horizontal variance grown by ``(init_speed_prior_std * excess)^2``.
 """
 
 from __future__ import annotations
@@ -46,6 +57,14 @@ from scipy.special import chdtri
 
 from alight.errors import EstimationError
 from alight.estimation.ego_ekf import NOT_POSITIVE_DEFINITE, OK, _mm, _mmt, chol_solve
+from alight.estimation.guards import (
+    FUTURE_TOLERANCE_S,
+    MAX_HORIZON_S,
+    MAX_POSITION_M,
+    check_covariance,
+    check_time,
+    check_vector,
+)
 from alight.types import FloatArray, PlatformEstimate, PlatformMeasurement
 
 REJECTED = 3
@@ -579,7 +598,10 @@ class PlatformEkf:
         self.n_out_of_order = 0
         """Measurements captured before the filter's internal time, ignored."""
         self.n_reinitializations = 0
-        """Times the track was dropped after consecutive gate rejections."""
+        """Times the track was dropped after consecutive gate rejections (or out-of-order measurements)."""
+        self.n_future = 0
+        """Measurements stamped more than ``FUTURE_TOLERANCE_S`` after the clock given to ``predict``."""
+        self._late: list[_Buffered] = []
         self.last_mahalanobis2 = math.nan
         """Squared Mahalanobis distance of the last innovation (chi-square, 3 or 4 dof when consistent)."""
 
@@ -604,9 +626,7 @@ class PlatformEkf:
     def predict(self, t: float) -> None:
         """Record the caller's clock ``t`` (s). The filter itself stays at its last measurement (see the
         module docstring); :meth:`state` and :meth:`predict_ahead` extrapolate on demand."""
-        if not math.isfinite(t):
-            raise EstimationError(f"PlatformEkf.predict: time must be finite, got {t}")
-        self._t_now = float(t)
+        self._t_now = check_time(t, "PlatformEkf.predict")
 
     def update(self, measurement: PlatformMeasurement) -> bool:
         """Fuse a measurement (its ``t`` is the capture time). Returns True when it was used (fused, or
@@ -621,14 +641,22 @@ class PlatformEkf:
             )
         if not (math.isfinite(t) and math.isfinite(float(p.sum())) and math.isfinite(float(cov.sum()))):
             raise EstimationError(f"PlatformEkf.update: non-finite measurement at t={t}")
+        check_time(t, "PlatformEkf.update")
+        check_vector(p, 3, MAX_POSITION_M, "p_WP", "PlatformEkf.update")
+        check_covariance(cov, 3, "PlatformEkf.update", "cov_p_WP")
         use_yaw = self.config.use_yaw and yaw is not None
         if use_yaw and yaw is not None:  # (use_yaw implies it; said again for the type checker)
             yaw_var = measurement.yaw_var if measurement.yaw_var is not None else self.config.yaw_std**2
             if not (math.isfinite(yaw) and math.isfinite(yaw_var) and yaw_var > 0.0):
                 raise EstimationError(f"PlatformEkf.update: yaw {yaw} / yaw_var {yaw_var} invalid at t={t}")
+        if t > self._t_now + FUTURE_TOLERANCE_S:  # False while there is no clock (NaN)
+            self.n_future += 1
+            return False
         if t < self._t:  # False while self._t is NaN (nothing seen yet)
             self.n_out_of_order += 1
+            self._note_late(_Buffered(t, p.copy(), cov.copy()))
             return False
+        self._late.clear()
         # kept for initialisation and re-initialisation: own the data unless the message froze it
         meas = _Buffered(t, p.copy() if p.flags.writeable else p, cov.copy() if cov.flags.writeable else cov)
         if not self._initialized:
@@ -682,6 +710,19 @@ class PlatformEkf:
         self._rejected.clear()
         self.n_updates += 1
         return True
+
+    def _note_late(self, meas: _Buffered) -> None:
+        """Keep a run of measurements far before the filter's time; a long enough run, in order among
+        itself, means the filter's time came from a measurement stamped in the future: restart from it."""
+        if meas.t >= self._t - FUTURE_TOLERANCE_S:
+            return  # slightly late: an ordinary out-of-order delivery
+        if self._late and meas.t < self._late[-1].t:
+            self._late.clear()
+        self._late.append(meas)
+        if len(self._late) >= self.config.reinit_after_rejections:
+            self._rejected = self._late
+            self._late = []
+            self._reinitialize()
 
     def _reinitialize(self) -> None:
         rejected = self._rejected
@@ -768,11 +809,19 @@ class PlatformEkf:
         """State ``x`` (n,) and covariance (n, n) extrapolated to ``t`` (s), filter unchanged."""
         if not self._initialized:
             raise EstimationError("PlatformEkf.propagated: not initialised")
-        if not math.isfinite(t):
-            raise EstimationError(f"PlatformEkf: query time must be finite, got {t}")
+        check_time(t, "PlatformEkf")
         xo = np.empty(self._n)
         Po = np.empty((self._n, self._n))
-        platform_propagate(self._x, self._P, t - self._t, self._q, self.config.max_step, xo, Po)
+        dt = t - self._t
+        # bounded work for any gap: integrate up to the horizon, grow the uncertainty beyond it
+        excess = abs(dt) - MAX_HORIZON_S
+        if excess > 0.0:
+            dt = math.copysign(MAX_HORIZON_S, dt)
+        platform_propagate(self._x, self._P, dt, self._q, self.config.max_step, xo, Po)
+        if excess > 0.0:
+            grow = (self.config.init_speed_prior_std * excess) ** 2
+            Po[0, 0] += grow
+            Po[1, 1] += grow
         return xo, Po
 
     def state(self, t: float) -> PlatformEstimate:
@@ -785,6 +834,7 @@ class PlatformEkf:
         last = self._last
         if last is None:
             raise EstimationError("PlatformEkf.state: no measurement yet")
+        t = check_time(t, "PlatformEkf.state")
         if not self._initialized:
             cov = last.cov.copy()
             grow = (self.config.init_speed_prior_std * abs(t - last.t)) ** 2
@@ -824,7 +874,8 @@ class PlatformEkf:
         if not self._initialized:
             k = ts.shape[0]
             return np.tile(last.p, (k, 1)), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k)
-        return self._ahead(self._x, ts - self._t)
+        # closed form, so any horizon costs the same; clipped so that no time overflows the model
+        return self._ahead(self._x, np.clip(ts - self._t, -MAX_HORIZON_S, MAX_HORIZON_S))
 
     def position_covariance_ahead(self, times: FloatArray) -> FloatArray:
         """Position covariance (k, 3, 3) (m^2) at the absolute ``times`` (k,), for planners that weigh
@@ -846,4 +897,5 @@ class PlatformEkf:
             "n_rejected": self.n_rejected,
             "n_out_of_order": self.n_out_of_order,
             "n_reinitializations": self.n_reinitializations,
+            "n_future": self.n_future,
         }

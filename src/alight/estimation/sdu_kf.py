@@ -58,6 +58,19 @@ case: detection latency) is brought to the filter's time by the shift above. ``d
 
 Initialisation: the first measurement sets ``x`` (shifted like the others) and ``P = p0 I`` (the paper's
 ``P = I``). ``initialized`` (the protocol's "has a heading and speed") follows the velocity estimator.
+
+Bad input (:mod:`alight.estimation.guards`; the paper has no gating). A measurement whose time, position
+or covariance is out of bounds (non-finite, beyond ``MAX_TIME_S`` / ``MAX_POSITION_M``, a covariance that
+is not symmetric positive semi-definite) raises :class:`alight.errors.MeasurementError` and changes
+nothing. One stamped more than ``FUTURE_TOLERANCE_S`` after the filter's clock (the latest time given by
+:meth:`SduKalmanFilter.set_ego` or :meth:`SduKalmanFilter.predict`) is refused (``n_future``); without a
+clock it is taken, but cannot block the filter: ``reinit_after_rejections`` measurements in a row, in
+order among themselves, that are too old for the kept history mean the filter's time was the fault, and
+the filter restarts from them (``n_restarts``). Innovation gate: a measurement whose innovation is more
+than ``GATE_SIGMA`` (10) standard deviations from the prediction (``e^T S^-1 e > 100``) is refused
+(``n_gated``) before it touches the filter or the velocity estimator; after ``reinit_after_rejections``
+refusals in a row the track is taken as lost and the filter restarts from the next measurement (``P = p0
+I``), so a moved platform is not locked out.
 """
 
 from __future__ import annotations
@@ -70,6 +83,14 @@ from typing import Literal
 import numpy as np
 
 from alight.errors import EstimationError
+from alight.estimation.guards import (
+    FUTURE_TOLERANCE_S,
+    GATE_SIGMA,
+    MAX_POSITION_M,
+    check_covariance,
+    check_time,
+    check_vector,
+)
 from alight.estimation.platform_velocity import PlatformVelocityConfig, PlatformVelocityEstimator
 from alight.estimation.turn_rate import TurnRateConfig, TurnRateTracker, turn_predict
 from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
@@ -109,6 +130,11 @@ class SduKfConfig:
     velocity, the paper's model."""
     turn: TurnRateConfig = field(default_factory=TurnRateConfig)
     """The turn-rate tracker's parameters."""
+    gating: bool = True
+    """Refuse innovations beyond ``GATE_SIGMA`` standard deviations (not in the paper; see the module
+    docstring)."""
+    reinit_after_rejections: int = 5
+    """Gate refusals in a row after which the filter restarts from the next measurement."""
 
     def __post_init__(self) -> None:
         for name in ("sigma_imu_mps", "sigma_obs_m", "p0_m2", "history_s"):
@@ -117,6 +143,8 @@ class SduKfConfig:
                 raise ValueError(f"{name} must be finite and > 0, got {v}")
         if self.delay_s is not None and not (math.isfinite(self.delay_s) and self.delay_s >= 0.0):
             raise ValueError(f"delay_s must be finite and >= 0 or None, got {self.delay_s}")
+        if self.reinit_after_rejections < 1:
+            raise ValueError(f"reinit_after_rejections must be >= 1, got {self.reinit_after_rejections}")
         if self.compensation_velocity not in ("relative", "uav"):
             raise ValueError(
                 f"compensation_velocity must be 'relative' or 'uav', got {self.compensation_velocity}"
@@ -171,6 +199,15 @@ class SduKalmanFilter:
         """``e^T S^-1 e`` of the last update (chi-square with 2 dof when consistent)."""
         self.last_delay_s = math.nan
         """``dt_obs`` of the last update (s)."""
+        self.n_gated = 0
+        """Measurements refused by the innovation gate."""
+        self.n_future = 0
+        """Measurements stamped more than ``FUTURE_TOLERANCE_S`` after the filter's clock, refused."""
+        self._consecutive_gated = 0
+        self.n_restarts = 0
+        """Restarts after a run of measurements too old for the filter's time (a future stamp)."""
+        self._t_clock = math.nan
+        self._late_t: list[float] = []
 
     # ---- inputs -----------------------------------------------------------------------------------
 
@@ -184,6 +221,8 @@ class SduKalmanFilter:
         # one sum catches any NaN or inf (at 50-200 Hz the per-array checks cost more than the filter)
         if not math.isfinite(t + sum(p) + sum(v) + sum(a)):
             raise EstimationError(f"SduKalmanFilter.set_ego: non-finite ego state at t={t}")
+        check_time(t, "SduKalmanFilter.set_ego")
+        self._t_clock = t if not t < self._t_clock else self._t_clock
         if math.isnan(self._tf):
             self._tf = t
         elif t > self._tf:
@@ -241,8 +280,12 @@ class SduKalmanFilter:
 
     def predict(self, t: float) -> None:
         """Move the filter on to ``t`` (s) with the held inputs; earlier times are ignored."""
-        if not math.isfinite(t):
-            raise EstimationError(f"SduKalmanFilter.predict: time must be finite, got {t}")
+        t = check_time(t, "SduKalmanFilter.predict")
+        self._t_clock = t if not t < self._t_clock else self._t_clock
+        self._move_to(t)
+
+    def _move_to(self, t: float) -> None:
+        """:meth:`predict` without setting the clock (a measurement's own time is no clock)."""
         if math.isnan(self._tf):
             self._tf = float(t)
             self._hold_inputs()
@@ -298,16 +341,29 @@ class SduKalmanFilter:
         cov = measurement.cov_p_WP
         if not math.isfinite(t_c):  # PlatformMeasurement itself refuses non-finite arrays
             raise EstimationError(f"SduKalmanFilter.update: non-finite capture time {t_c}")
+        check_time(t_c, "SduKalmanFilter.update")
+        check_vector(measurement.p_WP, 3, MAX_POSITION_M, "p_WP", "SduKalmanFilter.update")
+        check_covariance(cov, 3, "SduKalmanFilter.update", "cov_p_WP")
+        if t_c > self._t_clock + FUTURE_TOLERANCE_S:  # False without a clock (NaN)
+            self.n_future += 1
+            return False
         if math.isnan(self._tf):
-            self.predict(t_c)
+            self._move_to(t_c)
         elif t_c > self._tf:
-            self.predict(t_c)
+            self._move_to(t_c)
         if t_c < self._tf - c.history_s:
             self.n_too_old += 1
-            return False
-        self.velocity_estimator.update(t_c, measurement.p_WP, cov, measurement.yaw)
-        if c.turn_model and self.velocity_estimator.initialized:
-            self.turn_rate.update(t_c, *self.velocity_estimator.velocity_xy())
+            # a run of them, in order: the filter's time came from a measurement stamped in the future
+            if self._late_t and t_c < self._late_t[-1]:
+                self._late_t.clear()
+            self._late_t.append(t_c)
+            if len(self._late_t) < c.reinit_after_rejections:
+                return False
+            counters = (self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts + 1)
+            self.reset()
+            self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts = counters
+            return self.update(measurement)
+        self._late_t.clear()
         pb = self._ego_position(t_c)
         zx, zy = pb[0] - p[0], pb[1] - p[1]  # x_obs: the UAV relative to the pad at t_c
         dt_obs = (self._tf - t_c) if c.delay_s is None else c.delay_s
@@ -328,14 +384,34 @@ class SduKalmanFilter:
             r00, r01, r11 = float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1])
         else:
             r00, r01, r11 = c.sigma_obs_m**2, 0.0, c.sigma_obs_m**2
-        self._z = p[2]
-        self._var_z = float(cov[2, 2])
-        self._t_meas = t_c
-        self.n_updates += 1
         # the time the (shifted) measurement is weighed at: its capture time, or the filter's time
         t_gain = self._tf
         if c.compensate_delay and c.capture_time_gain:
             t_gain = max(self._tf - max(dt_obs, 0.0), self._tcap if self._has else -math.inf)
+        if self._has and c.gating:
+            # the gate, before the measurement touches anything (the shift above reads only the past)
+            q = (t_gain - self._tcap) * c.sigma_imu_mps**2
+            g00, g01, g11 = self._p00 + q + r00, self._p01 + r01, self._p11 + q + r11
+            gdet = g00 * g11 - g01 * g01
+            e0, e1 = zx - self._x0, zy - self._x1
+            if (
+                gdet > 0.0
+                and (e0 * (g11 * e0 - g01 * e1) + e1 * (g00 * e1 - g01 * e0)) > GATE_SIGMA**2 * gdet
+            ):
+                self.n_gated += 1
+                self._consecutive_gated += 1
+                if self._consecutive_gated >= c.reinit_after_rejections:
+                    self._has = False  # the track is lost: the next measurement starts it again
+                    self._consecutive_gated = 0
+                return False
+        self._consecutive_gated = 0
+        self.velocity_estimator.update(t_c, measurement.p_WP, cov, measurement.yaw)
+        if c.turn_model and self.velocity_estimator.initialized:
+            self.turn_rate.update(t_c, *self.velocity_estimator.velocity_xy())
+        self._z = p[2]
+        self._var_z = float(cov[2, 2])
+        self._t_meas = t_c
+        self.n_updates += 1
         if not self._has:
             self._x0, self._x1 = zx, zy
             self._p00, self._p01, self._p11 = c.p0_m2, 0.0, c.p0_m2
@@ -413,8 +489,7 @@ class SduKalmanFilter:
         moved by the platform velocity to ``t``. Raises EstimationError before any measurement."""
         if not self._has:
             raise EstimationError("SduKalmanFilter.state: no measurement yet")
-        if not math.isfinite(t):
-            raise EstimationError(f"SduKalmanFilter.state: time must be finite, got {t}")
+        t = check_time(t, "SduKalmanFilter.state")
         tau = t - self._tf
         px, py = self._pad_at_filter_time()
         mx, my = self._u[4], self._u[5]

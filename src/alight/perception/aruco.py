@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from alight.perception.falanga_tag import as_gray_u8
+from alight.perception.image_input import as_gray_u8, check_time
 from alight.types import FloatArray, Observation
 
 DICTIONARIES: dict[str, int] = {
@@ -105,7 +105,8 @@ class ArucoPadDetector:
 
     def detect(self, image: object, t: float) -> list[Observation]:
         """One observation per marker (kind ``aruco:ID``), sorted by id; ``[]`` when there is none or the
-        image is unusable."""
+        image is unusable (:mod:`alight.perception.image_input`)."""
+        t = check_time(t)
         corners, ids = self.detect_markers(image)
         out: list[Observation] = []
         for c, mid in sorted(zip(corners, ids, strict=True), key=lambda a: a[1]):

@@ -53,6 +53,27 @@ for that).
 
 With ``gate``, :meth:`detect` depends on the last prediction set, so it is no longer a pure function of
 the image; the pipeline sets the prediction before each frame (or clears it with ``None``).
+
+**An object, not a tint or noise** (every mode, not in the paper). Alg. 2 is a per-pixel test, so a frame
+that is red all over (a red tarpaulin filling the view, a colour cast, a wrong white balance) is one
+"biggest contour" covering the image, and sensor or compression noise on a reddish scene makes ragged
+speckle clusters; the paper's rule reports either as the target (a uniformly red frame came out with
+quality 1.0). The chosen candidate must therefore be a bounded region with contrast against what surrounds
+it, two checks on the candidate alone:
+
+- *bounded*: at least ``min_inside_boundary_frac`` (default 0.25) of its boundary pixels lie inside the
+  image rather than on the image border. A target seen from close by and cut by the frame keeps the arcs
+  of its rim that are in view (a disc cut by one border through its centre: 61 % inside); a frame red all
+  over has none.
+- *contrast*: in a band around it (from 2 px out, where the contour's own 8-neighbours end, to
+  ``max(4, 0.25 sqrt(area))`` px), at most ``max_surround_red_frac`` (default 0.1) of the pixels pass the
+  colour filter. A target lies on a background of another colour (its band is empty); a speckle of noise
+  is surrounded by other speckles as red as itself (20-60 % of the band on noise frames). A distractor
+  that touches the band takes part of it, so the bound is a fraction, not zero.
+
+Input: :func:`alight.perception.image_input.as_bgr_u8` (16-bit, float and BGRA images are converted). A
+grey image has no colour to filter: ``detect`` returns ``[]`` for it (the Detector protocol: no exception
+on a uniform frame), so pair this detector with a colour camera (:attr:`RedTargetDetector.needs_colour`).
 """
 
 from __future__ import annotations
@@ -66,6 +87,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.perception.image_input import as_bgr_u8, check_time
 from alight.types import FloatArray, Observation
 
 MITIGATIONS = ("none", "gate", "shape", "gate+shape")
@@ -179,6 +201,12 @@ class RedTargetDetectorConfig:
     """With ``shape``: largest area / minimum-area rectangle area (0.9 rejects rectangles, keeps discs)."""
     gate_radius_px: float = 60.0
     """With ``gate``: radius (px) used when :meth:`RedTargetDetector.set_prediction` gives none."""
+    min_inside_boundary_frac: float = 0.25
+    """In every mode: smallest fraction of the target's boundary pixels that lie inside the image, not on
+    its border (0 turns the check off; see "An object, not a tint or noise" in the module docstring)."""
+    max_surround_red_frac: float = 0.1
+    """In every mode: largest fraction of red (``I_CF``) pixels in the band around the target (1 turns the
+    check off)."""
 
     def __post_init__(self) -> None:
         if self.mitigation not in MITIGATIONS:
@@ -203,6 +231,10 @@ class RedTargetDetectorConfig:
             raise ValueError("min_fill must be <= max_fill")
         if not (math.isfinite(self.gate_radius_px) and self.gate_radius_px > 0):
             raise ValueError(f"gate_radius_px must be finite and > 0, got {self.gate_radius_px}")
+        for name in ("min_inside_boundary_frac", "max_surround_red_frac"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {v}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -275,10 +307,14 @@ def region_moments(mask: NDArray[np.uint8], contour: NDArray[np.int32]) -> tuple
 class RedTargetDetector:
     """Paper 003's colour-filter detector (Alg. 1, 2, biggest contour), with optional false-lock mitigation.
 
-    ``detect(image, t)`` takes a BGR uint8 image (H, W, 3) (a 4th alpha channel is ignored) and returns
-    ``[]`` or one :class:`BlobObservation`; grey, empty, tiny or malformed images give ``[]``, never an
-    exception.
+    ``detect(image, t)`` takes a BGR image (H, W, 3) (a 4th alpha channel is ignored; 16-bit and float
+    images are converted by :func:`alight.perception.image_input.as_bgr_u8`) and returns ``[]`` or one
+    :class:`BlobObservation`; empty, tiny, malformed and grey images (no colour to filter) give ``[]``;
+    a non-finite ``t`` raises :class:`alight.errors.ImageError`.
     """
+
+    needs_colour = True
+    """This detector finds nothing in grey frames: a configuration that feeds it a grey camera is wrong."""
 
     def __init__(self, config: RedTargetDetectorConfig | None = None) -> None:
         self.config = config if config is not None else RedTargetDetectorConfig()
@@ -321,12 +357,10 @@ class RedTargetDetector:
 
     @staticmethod
     def _as_bgr(image: Any) -> NDArray[np.uint8] | None:
-        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3:
+        img = as_bgr_u8(image)
+        if img is None or img.shape[0] < 2 or img.shape[1] < 2:
             return None
-        if image.shape[2] not in (3, 4) or image.shape[0] < 2 or image.shape[1] < 2:
-            return None
-        img = image[:, :, :3] if image.shape[2] == 4 else image
-        return np.ascontiguousarray(img)
+        return img
 
     def mask(self, image: Any) -> NDArray[np.uint8] | None:
         """``I_CF`` of Alg. 2 (after the optional opening), or None for an image it cannot read."""
@@ -382,8 +416,49 @@ class RedTargetDetector:
             return blobs[k] if d[k] <= self._gate_radius_px else None
         return blobs[0]
 
+    def is_object(self, m: NDArray[np.uint8], blob: Blob) -> bool:
+        """The *bounded* and *contrast* checks of the module docstring on ``blob``, a contour of the mask
+        ``m`` (``I_CF``)."""
+        c = self.config
+        H, W = m.shape
+        x, y, w, h = cv2.boundingRect(blob.contour)
+        if c.min_inside_boundary_frac > 0.0:
+            pts = blob.contour.reshape(-1, 2)
+            # CHAIN_APPROX_SIMPLE keeps only the ends of straight runs: walk the polygon's edges instead
+            closed = np.concatenate([pts, pts[:1]])
+            seg = np.abs(np.diff(closed, axis=0)).max(axis=1)
+            on_border = (
+                ((closed[:-1, 0] == 0) & (closed[1:, 0] == 0))
+                | ((closed[:-1, 0] == W - 1) & (closed[1:, 0] == W - 1))
+                | ((closed[:-1, 1] == 0) & (closed[1:, 1] == 0))
+                | ((closed[:-1, 1] == H - 1) & (closed[1:, 1] == H - 1))
+            )
+            total = float(seg.sum())
+            if total > 0.0 and float(seg[~on_border].sum()) < c.min_inside_boundary_frac * total:
+                return False
+        if c.max_surround_red_frac < 1.0:
+            band = max(4, round(0.25 * math.sqrt(blob.area_px)))
+            x0, y0 = max(0, x - band), max(0, y - band)
+            x1, y1 = min(W, x + w + band), min(H, y + h + band)
+            region = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            cv2.drawContours(
+                region, [blob.contour - np.array([x0, y0], dtype=blob.contour.dtype)], -1, 255, -1
+            )
+            outer = cv2.dilate(
+                region, cv2.getStructuringElement(cv2.MORPH_RECT, (2 * band + 1, 2 * band + 1))
+            )
+            inner = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
+            ring = cv2.subtract(outer, inner)
+            n_ring = cv2.countNonZero(ring)
+            if n_ring > 0:
+                red = cv2.countNonZero(cv2.bitwise_and(ring, m[y0:y1, x0:x1]))
+                if red > c.max_surround_red_frac * n_ring:
+                    return False
+        return True
+
     def detect(self, image: Any, t: float) -> list[Observation]:
         """The target in ``image`` captured at ``t`` (s): ``[]`` or one :class:`BlobObservation`."""
+        t = check_time(t)
         try:
             m = self.mask(image)
             if m is None:
@@ -392,7 +467,7 @@ class RedTargetDetector:
             if not blobs:
                 return []
             b = self.select(blobs, float(m.shape[0] * m.shape[1]))
-            if b is None:
+            if b is None or not self.is_object(m, b):
                 return []
             centroid, area = region_moments(m, b.contour)
         except cv2.error:

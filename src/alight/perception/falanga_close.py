@@ -644,7 +644,7 @@ class CloseRangeCrossDetector:
 
     def detect(self, gray: U8Array, t: float) -> Observation | None:
         """The cross in a grey uint8 image (H, W) captured at ``t`` (s), or None. Raises ``ValueError`` for
-        anything else than a 2-D uint8 array (:func:`alight.perception.falanga_tag.as_gray_u8` converts)."""
+        anything else than a 2-D uint8 array (:func:`alight.perception.image_input.as_gray_u8` converts)."""
         if not isinstance(gray, np.ndarray) or gray.ndim != 2 or gray.dtype != np.uint8:
             raise ValueError("CloseRangeCrossDetector.detect needs a 2-D uint8 grey image")
         gray = np.ascontiguousarray(gray)

@@ -88,6 +88,7 @@ from alight.numerics.image import bilinear
 from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
 from alight.perception.falanga_close import CloseRangeCrossDetector
+from alight.perception.image_input import as_gray_u8, check_time
 from alight.types import FloatArray, Observation
 
 U8Array = NDArray[np.uint8]
@@ -822,42 +823,6 @@ def _pattern_samples(tag: FalangaTag) -> tuple[FloatArray, FloatArray]:
     return np.ascontiguousarray(p[keep]), np.ascontiguousarray(label[keep])
 
 
-def as_gray_u8(image: object) -> U8Array | None:
-    """The image as a C-contiguous 2-D uint8 array (BGR/BGRA converted to grey), or None when it is not
-    an image (empty, wrong number of dimensions or channels, not numeric). Non-uint8 images are clipped
-    to [0, 255] (floats with max <= 1 scaled by 255, uint16 by 1/257, NaN read as 0)."""
-    if isinstance(image, np.ndarray):
-        a = image
-    else:
-        try:
-            a = np.asarray(image)
-        except Exception:
-            return None
-    if a.size == 0 or a.ndim not in (2, 3):
-        return None
-    if a.ndim == 3:
-        if a.shape[2] == 1:
-            a = a[:, :, 0]
-        elif a.shape[2] not in (3, 4):
-            return None
-    if a.dtype != np.uint8:
-        if a.dtype == np.bool_:
-            a = a.astype(np.uint8) * 255
-        elif np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating):
-            f = np.nan_to_num(a.astype(np.float64), nan=0.0, posinf=255.0, neginf=0.0)
-            if np.issubdtype(a.dtype, np.floating) and float(f.max()) <= 1.0:
-                f = f * 255.0
-            elif a.dtype == np.uint16:
-                f = f / 257.0
-            a = np.clip(np.round(f), 0, 255).astype(np.uint8)
-        else:
-            return None
-    if a.ndim == 3:
-        code = cv2.COLOR_BGR2GRAY if a.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-        a = cv2.cvtColor(np.ascontiguousarray(a), code)
-    return np.ascontiguousarray(a)
-
-
 class FalangaTagDetector:
     """Paper 000's tag detector (Alg. 1). ``detect(image, t)`` is a pure function of the image.
 
@@ -902,7 +867,10 @@ class FalangaTagDetector:
 
     def detect(self, image: object, t: float) -> list[Observation]:
         """Observations of the tag in ``image`` (grey or BGR uint8 of any size) captured at ``t`` (s): at
-        most one; ``[]`` when there is no tag or the image is unusable (empty, tiny, not an image)."""
+        most one; ``[]`` when there is no tag or the image is unusable (empty, tiny, not an image);
+        :class:`alight.errors.ImageError` for a non-finite ``t`` or an oversized image
+        (:mod:`alight.perception.image_input`)."""
+        t = check_time(t)
         return self._run(image, t, None) or self._run_close(image, t)
 
     def set_range(self, range_m: float | None) -> None:
@@ -918,6 +886,7 @@ class FalangaTagDetector:
         (component shape scores, contour tracing and polygon fits), ``quad`` (corner refinement), ``inner``
         (pattern check, ring edges, cross corners) and ``ransac`` (the RANSAC homographies). The close-range
         stage (when no quad was found) counts in ``total`` only: ``total`` minus the sum of the stages."""
+        t = check_time(t)
         times = dict.fromkeys(STAGES, 0.0)
         t0 = time.perf_counter()
         obs = self._run(image, t, times) or self._run_close(image, t)

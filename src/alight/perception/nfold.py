@@ -87,7 +87,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from alight.perception.falanga_tag import as_gray_u8
+from alight.perception.image_input import as_gray_u8, check_time
 from alight.types import FloatArray, Observation
 
 U8Array = NDArray[np.uint8]
@@ -573,7 +573,8 @@ class NFoldDetector:
         """At most one observation (kind ``nfold``): the tip as the single image point, the quality, and
         for an oriented marker ``yaw_CP`` = the missing leg's image angle (the pad's x axis when the leg
         points along it, as on :class:`alight.pads.SduPad`); ``[]`` when no kernel size reaches
-        ``min_quality`` or the image is unusable."""
+        ``min_quality`` or the image is unusable (:mod:`alight.perception.image_input`)."""
+        t = check_time(t)
         res = self.detect_result(image)
         if res is None:
             return []

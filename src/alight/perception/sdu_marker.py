@@ -63,7 +63,7 @@ import numpy as np
 from alight.cameras import CameraModel
 from alight.pads.sdu_pad import SduPad
 from alight.perception.aruco import ArucoPadDetector
-from alight.perception.falanga_tag import as_gray_u8
+from alight.perception.image_input import as_gray_u8, check_time
 from alight.perception.nfold import NFoldConfig, NFoldDetector, NFoldResult
 from alight.types import FloatArray, Observation
 
@@ -206,7 +206,9 @@ class SduMarkerDetector:
         ]
 
     def detect_detailed(self, image: object, t: float) -> SduDetection | None:
-        """Every source and the fusion (:class:`SduDetection`); None when nothing is found."""
+        """Every source and the fusion (:class:`SduDetection`); None when nothing is found (or the image
+        is unusable: :mod:`alight.perception.image_input`)."""
+        t = check_time(t)
         gray = as_gray_u8(image)
         if gray is None or min(gray.shape) < 8:
             return None
