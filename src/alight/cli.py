@@ -1,6 +1,7 @@
 """The ``alight`` command.
 
-    alight fly SCENARIO.yaml --out DIR [--seed N]
+    alight fly SCENARIO.yaml --out DIR [--seed N] [--print-config]
+    alight blocks
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
     alight campaign CAMPAIGN.yaml [--out DIR] [--engine local|dask] [--scheduler ADDR] [--workers N]
@@ -29,6 +30,15 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         if args.seed < 0:
             raise AlightError(f"--seed must be >= 0, got {args.seed}")
         scenario = scenario.with_seed(args.seed)
+    if args.print_config:
+        import yaml
+
+        from alight.mission.presets import effective_config
+
+        print(yaml.safe_dump(effective_config(scenario), sort_keys=False), end="")
+        return 0
+    if args.out is None:
+        raise AlightError("--out DIR is required (unless --print-config)")
     out = Path(args.out)
     run = fly_to_dir(scenario, out, replay=args.replay)
     r = run.result
@@ -38,6 +48,13 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         f"{r['preset']} seed {r['seed']}: {r['outcome']}, touchdown error {err_txt}, "
         f"{r['simulated_time_s']:.1f} s simulated in {r['wall_time_s']:.2f} s -> {out / 'report.html'}"
     )
+    return 0
+
+
+def _cmd_blocks(args: argparse.Namespace) -> int:
+    from alight.mission.blocks import describe_blocks
+
+    print(describe_blocks())
     return 0
 
 
@@ -127,12 +144,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     fly = sub.add_parser("fly", help="fly one mission and write result.json, the log, plots and report.html")
     fly.add_argument("scenario", help="scenario YAML file")
-    fly.add_argument("--out", required=True, help="output directory")
+    fly.add_argument("--out", default=None, help="output directory (required unless --print-config)")
     fly.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     fly.add_argument(
         "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
     )
+    fly.add_argument(
+        "--print-config",
+        action="store_true",
+        help="print the effective configuration (blocks with parameters after preset + overrides) and exit",
+    )
     fly.set_defaults(func=_cmd_fly)
+
+    blk = sub.add_parser("blocks", help="list every block, its parameters and what it works with")
+    blk.set_defaults(func=_cmd_blocks)
 
     det = sub.add_parser("detect", help="run a detector on images; one JSON line per image")
     det.add_argument("images", nargs="+")
