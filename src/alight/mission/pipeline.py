@@ -23,6 +23,7 @@ from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
 from alight.perception import ModeAware, PixelGated, RangeAware, TiltAware
+from alight.perception.geolocation import pad_centre_pixel
 from alight.types import (
     PIPELINE_BLOCKS,
     Command,
@@ -287,10 +288,11 @@ class Pipeline:
         t0 = time.perf_counter()
         if self._feed_ego is not None and ego is not None:
             self._feed_ego(ego)
-        if self._update_pixel is not None and best.pixels.shape[0] >= 1:
-            # The estimator fuses the pixel through its own camera model; the geolocated point above is
-            # what the pipeline reports (logs, detections) for the same image.
-            used = self._update_pixel(t_capture, best.pixels[0], self.history.state_at(t_capture))
+        centre = pad_centre_pixel(best) if self._update_pixel is not None else None
+        if self._update_pixel is not None and centre is not None:
+            # The estimator fuses the pad centre's pixel through its own camera model; the geolocated
+            # point above is what the pipeline reports (logs, detections) for the same image.
+            used = self._update_pixel(t_capture, centre, self.history.state_at(t_capture))
         else:
             used = self.platform_estimator.update(measurement)
         self.stats.charge("platform_estimator", t0)
