@@ -109,8 +109,10 @@ def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
     if fov == "perception" or camera is None:
         return math.radians(min(s.perception.fov_deg))
     if fov == "camera":
+        # capped at 120 deg: beyond it a pad is too small and too oblique to find (an omnidirectional
+        # camera's 186 deg would space the pattern wider than the search area)
         h_fov, v_fov = camera.fov_rad()
-        return float(min(h_fov, v_fov))
+        return min(float(min(h_fov, v_fov)), math.radians(120.0))
     return math.radians(float(fov))
 
 
