@@ -773,7 +773,29 @@ def resolve_blocks(scenario: Any, *, load_camera: bool = True) -> EffectiveBlock
     color_needed = any(b.spec.needs.get("camera.color") == (True,) for b in chosen.values())
     color = color_needed if scenario.camera.color is None else bool(scenario.camera.color)
     check_compatibility(chosen, source, color=color)
+    if load_camera:
+        # a geolocator validates its parameters in its constructor (cheap): run it now, not in flight
+        from alight.cameras.pinhole import CameraMount
+
+        g = chosen["geolocator"]
+        where = source["geolocator"].split(" (preset")[0]
+        try:
+            build_geolocator(g, camera_model, CameraMount.downward())
+        except (ValueError, TypeError) as err:
+            raise ValueError(f"{where}: geolocator '{g.name}' rejects its parameters: {err}") from None
     return EffectiveBlocks(scenario.preset, chosen, dict(preset.get("mission", {})), camera_model, color)
+
+
+def build_geolocator(block: Block, camera: Any, mount: Any) -> Any:
+    """The geolocator of ``block`` (stage ``geolocator``) for a camera model and mount."""
+    kw = {f.name: getattr(block.params, f.name) for f in dataclasses.fields(block.params)}
+    if block.name == "pnp":
+        return PnpGeolocator(camera, mount, **kw)
+    if block.name == "flat_earth":
+        return FlatEarthGeolocator(camera, mount, **kw)
+    if block.name == "homography":
+        return HomographyGeolocator(camera, mount, **kw)
+    return DirectGeolocator(mount, **kw)
 
 
 def check_compatibility(chosen: Mapping[str, Block], source: Mapping[str, str], *, color: bool) -> None:

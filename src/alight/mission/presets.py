@@ -27,7 +27,7 @@ from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.kim_ukf import KimUkf
 from alight.estimation.platform_ekf import PlatformEkf
 from alight.estimation.sdu_kf import SduKalmanFilter
-from alight.mission.blocks import EffectiveBlocks, preset_names, resolve_blocks
+from alight.mission.blocks import EffectiveBlocks, build_geolocator, preset_names, resolve_blocks
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
@@ -38,9 +38,6 @@ from alight.pads.sdu_pad import SduPad
 from alight.perception.aruco import ArucoPadDetector
 from alight.perception.color_filter import RedTargetDetector
 from alight.perception.falanga_tag import FalangaTagDetector
-from alight.perception.flat_earth import FlatEarthGeolocator
-from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
-from alight.perception.homography_geolocation import HomographyGeolocator
 from alight.perception.nfold import NFoldDetector
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
@@ -190,18 +187,6 @@ def _detector(s: Any, eff: EffectiveBlocks, pad: Any, camera: Any) -> tuple[Any,
     return QosDetector(inner, policy), energy_model
 
 
-def _geolocator(eff: EffectiveBlocks, camera: Any, mount: CameraMount) -> Any:
-    g = eff["geolocator"]
-    kw = _kwargs(g.params)
-    if g.name == "pnp":
-        return PnpGeolocator(camera, mount, **kw)
-    if g.name == "flat_earth":
-        return FlatEarthGeolocator(camera, mount, **kw)
-    if g.name == "homography":
-        return HomographyGeolocator(camera, mount, **kw)
-    return DirectGeolocator(mount, **kw)
-
-
 def _platform_estimator(eff: EffectiveBlocks, camera: Any, mount: CameraMount) -> Any:
     e = eff["platform_estimator"]
     if e.name == "unicycle_ekf":
@@ -238,7 +223,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     pipeline = Pipeline(
         ego_estimator=ego,
         detector=detector,
-        geolocator=_geolocator(eff, camera, mount),
+        geolocator=build_geolocator(eff["geolocator"], camera, mount),
         platform_estimator=_platform_estimator(eff, camera, mount),
         mission=mission,
         guidance=guidance,
