@@ -115,6 +115,37 @@ def _one_line(text: str | None) -> str:
     return " ".join((text or "").split()).replace("|", "\\|").replace("``", "`")
 
 
+def combinations() -> tuple[list[dict[str, str]], list[tuple[dict[str, str], str]]]:
+    """Every camera x (pad, detector) x geolocator x platform estimator, on ``falanga2017``'s other
+    blocks: the compatible ones, and the incompatible ones with the line that refuses them."""
+    from alight.mission.blocks import BLOCKS
+    from alight.scenario import Scenario
+
+    good: list[dict[str, str]] = []
+    bad: list[tuple[dict[str, str], str]] = []
+    for camera in BLOCKS["camera"]:
+        for detector, dspec in BLOCKS["detector"].items():
+            pads = list(dspec.needs.get("pad", ("falanga_tag",)))
+            for pad in pads:
+                for geolocator in BLOCKS["geolocator"]:
+                    for estimator in BLOCKS["platform_estimator"]:
+                        combo = {
+                            "camera": camera,
+                            "pad": pad,
+                            "detector": detector,
+                            "geolocator": geolocator,
+                            "platform_estimator": estimator,
+                        }
+                        try:
+                            Scenario.model_validate({"preset": "falanga2017", "blocks": combo})
+                        except ValueError as err:  # pydantic's ValidationError is a ValueError
+                            msg = str(err).splitlines()[1].strip().removeprefix("Value error, ")
+                            bad.append((combo, msg.split(" [type=")[0]))
+                        else:
+                            good.append(combo)
+    return good, bad
+
+
 def scenario_rows(model: type[BaseModel] | None = None, prefix: str = "") -> list[tuple[str, str, str]]:
     """(dotted key, default, meaning) of every scenario key, sections before their keys."""
     from alight.scenario import Scenario
@@ -142,7 +173,7 @@ def scenarios_md() -> str:
 
 
 def blocks_md() -> str:
-    from alight.mission.blocks import BLOCKS, STAGES, _plain, combinations, preset_data, preset_names
+    from alight.mission.blocks import BLOCKS, STAGES, _plain, preset_data, preset_names
 
     out = [
         "# Blocks",
@@ -237,8 +268,6 @@ def blocks_md() -> str:
 
 def blocks_campaign() -> str:
     import yaml
-
-    from alight.mission.blocks import combinations
 
     good, _ = combinations()
     sets = [{"name": "-".join(c.values()), "preset": "falanga2017", "blocks": c} for c in good]

@@ -869,33 +869,3 @@ def compatible_pairs() -> list[tuple[str, str, str, str]]:
                         continue
                     out.append((stage, spec.name, other_stage, other.name))
     return out
-
-
-def combinations() -> tuple[list[dict[str, str]], list[tuple[dict[str, str], str]]]:
-    """Every camera x (pad, detector) x geolocator x platform estimator, on ``falanga2017``'s other
-    blocks: the compatible ones, and the incompatible ones with the line that refuses them."""
-    from alight.scenario import Scenario
-
-    good: list[dict[str, str]] = []
-    bad: list[tuple[dict[str, str], str]] = []
-    for camera in BLOCKS["camera"]:
-        for detector, dspec in BLOCKS["detector"].items():
-            pads = list(dspec.needs.get("pad", ("falanga_tag",)))
-            for pad in pads:
-                for geolocator in BLOCKS["geolocator"]:
-                    for estimator in BLOCKS["platform_estimator"]:
-                        combo = {
-                            "camera": camera,
-                            "pad": pad,
-                            "detector": detector,
-                            "geolocator": geolocator,
-                            "platform_estimator": estimator,
-                        }
-                        try:
-                            Scenario.model_validate({"preset": "falanga2017", "blocks": combo})
-                        except ValueError as err:  # pydantic's ValidationError is a ValueError
-                            msg = str(err).splitlines()[1].strip().removeprefix("Value error, ")
-                            bad.append((combo, msg.split(" [type=")[0]))
-                        else:
-                            good.append(combo)
-    return good, bad

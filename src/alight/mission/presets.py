@@ -22,7 +22,7 @@ from alight.control import Controller
 from alight.control.high_level import HighLevelController, HighLevelGains
 from alight.control.l1_adaptive import L1AugmentedController, L1Config
 from alight.control.rate import RateControllerGains
-from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosDetector, QosEnergyModel, QosSetting
+from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosEnergyModel, QosSetting
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.kim_ukf import KimUkf
 from alight.estimation.platform_ekf import PlatformEkf
@@ -39,6 +39,7 @@ from alight.perception.aruco import ArucoPadDetector
 from alight.perception.color_filter import RedTargetDetector
 from alight.perception.falanga_tag import FalangaTagDetector
 from alight.perception.nfold import NFoldDetector
+from alight.perception.qos_detector import QosDetector
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
 from alight.planning.min_jerk import EndConstraint
