@@ -201,7 +201,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     """The pipeline of ``scenario``'s blocks (its preset's, with the scenario's overrides)."""
     del rng  # no block draws at construction; kept for the runner's call
     s = scenario
-    eff = resolve_blocks(s)
+    eff = resolve_blocks(s, fresh_camera=True)  # this flight's own camera model
     uses_camera = bool(eff["detector"].spec.provides.get("image", True))
     camera: PinholeCamera | OmniCamera | None = eff.camera_model if uses_camera else None
     mount = CameraMount.downward()
