@@ -136,6 +136,8 @@ def combinations() -> tuple[list[dict[str, str]], list[tuple[dict[str, str], str
                             "geolocator": geolocator,
                             "platform_estimator": estimator,
                         }
+                        if detector == "groundtruth" and camera != "pinhole":
+                            continue  # no image: the camera is not used, one row is enough
                         try:
                             Scenario.model_validate({"preset": "falanga2017", "blocks": combo})
                         except ValueError as err:  # pydantic's ValidationError is a ValueError
