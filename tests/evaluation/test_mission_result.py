@@ -24,7 +24,7 @@ def test_results_csv_columns_come_from_mission_result() -> None:
 
 def test_docs_campaigns_lists_the_mission_result_columns_in_order() -> None:
     text = (ROOT / "docs" / "campaigns.md").read_text(encoding="utf-8")
-    para = text[text.index("`results.csv` columns, in order:") :]
+    para = text[text.index("`results.csv` columns, in order") :]
     para = para[: para.index("Missing values")]
     tokens = re.findall(r"`([^`]*)`", para, re.S)
     documented = [n.strip() for tok in tokens for n in tok.replace("\n", " ").split(",")]
