@@ -238,6 +238,20 @@ def blocks_md() -> str:
             out.append("")
     good, bad = combinations()
     out += [
+        "## Measured: the three required combinations",
+        "",
+        "`alight campaign examples/campaigns/blocks_acceptance.yaml --workers 1` (10 seeds per condition,",
+        "branch `blocks`, 2026-11-26): every mission landed.",
+        "",
+        "| blocks | platform | landed | median touchdown error (m) |",
+        "|---|---|---|---|",
+        "| pinhole, AprilTag pad, `aruco`, `pnp`, `unicycle_ekf` | circle 2.0 m/s | 10/10 | 0.023 |",
+        "| pinhole, AprilTag pad, `aruco`, `pnp`, `unicycle_ekf` | line 1.5 m/s | 10/10 | 0.015 |",
+        "| fisheye, red target, `red`, `flat_earth`, `unicycle_ekf` | circle 2.0 m/s | 10/10 | 0.019 |",
+        "| fisheye, red target, `red`, `flat_earth`, `unicycle_ekf` | line 1.5 m/s | 10/10 | 0.034 |",
+        "| pinhole, cross-and-circle tag, `falanga`, `pnp`, `kim_ukf` | circle 2.0 m/s | 10/10 | 0.019 |",
+        "| pinhole, cross-and-circle tag, `falanga`, `pnp`, `kim_ukf` | line 1.5 m/s | 10/10 | 0.006 |",
+        "",
         "## Combinations",
         "",
         "Every camera x (pad, detector) x geolocator x platform estimator, on `falanga2017`'s controller,",
