@@ -21,8 +21,9 @@ import math
 import numpy as np
 
 from alight.cameras import CameraMount, PinholeCamera, camera_pose_W
-from alight.energy.qos import QosDetector, QosSetting
+from alight.energy.qos import QosSetting
 from alight.pads.sdu_pad import SduPad
+from alight.perception.qos_detector import QosDetector
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.textures import make_ground_texture

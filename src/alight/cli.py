@@ -1,6 +1,8 @@
 """The ``alight`` command.
 
     alight fly SCENARIO.yaml --out DIR [--seed N] [--replay] [--mcap] [--bag PATH [--bag-storage S]]
+               [--print-config]
+    alight blocks
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
     alight campaign CAMPAIGN.yaml [--out DIR] [--engine local|dask] [--scheduler ADDR] [--workers N]
@@ -35,6 +37,15 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         if args.seed < 0:
             raise AlightError(f"--seed must be >= 0, got {args.seed}")
         scenario = scenario.with_seed(args.seed)
+    if args.print_config:
+        import yaml
+
+        from alight.mission.presets import effective_config
+
+        print(yaml.safe_dump(effective_config(scenario), sort_keys=False), end="")
+        return 0
+    if args.out is None:
+        raise AlightError("--out DIR is required (unless --print-config)")
     out = Path(args.out)
     exports = _fly_exports(args, scenario, out)
     try:
@@ -59,10 +70,10 @@ def _camera_of(scenario: Any) -> tuple[Any, Any]:
     """The camera model and mount of the scenario's preset (as the runner builds them)."""
     import numpy as np
 
-    from alight.airframe import DEFAULT_AIRFRAME
+    from alight.airframes import load_airframe
     from alight.mission.presets import build_preset
 
-    preset = build_preset(scenario, DEFAULT_AIRFRAME, np.random.default_rng(0))
+    preset = build_preset(scenario, load_airframe(scenario.airframe), np.random.default_rng(0))
     return preset.camera, preset.mount
 
 
@@ -91,6 +102,13 @@ def _fly_exports(
             raise
         exports.append((bag, lambda run: bag.finish(run.log)))
     return exports
+
+
+def _cmd_blocks(args: argparse.Namespace) -> int:
+    from alight.mission.blocks import describe_blocks
+
+    print(describe_blocks())
+    return 0
 
 
 def _cmd_detect(args: argparse.Namespace) -> int:
@@ -259,7 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     fly = sub.add_parser("fly", help="fly one mission and write result.json, the log, plots and report.html")
     fly.add_argument("scenario", help="scenario YAML file")
-    fly.add_argument("--out", required=True, help="output directory")
+    fly.add_argument("--out", default=None, help="output directory (required unless --print-config)")
     fly.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     fly.add_argument(
         "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
@@ -271,7 +289,15 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument(
         "--bag-storage", choices=("mcap", "sqlite3"), default="mcap", help="storage of --bag (default mcap)"
     )
+    fly.add_argument(
+        "--print-config",
+        action="store_true",
+        help="print the effective configuration (blocks with parameters after preset + overrides) and exit",
+    )
     fly.set_defaults(func=_cmd_fly)
+
+    blk = sub.add_parser("blocks", help="list every block, its parameters and what it works with")
+    blk.set_defaults(func=_cmd_blocks)
 
     det = sub.add_parser("detect", help="run a detector on images; one JSON line per image")
     det.add_argument("images", nargs="+")

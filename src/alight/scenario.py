@@ -52,7 +52,7 @@ WindComponent = Annotated[float, Field(ge=-60.0, le=60.0, allow_inf_nan=False)]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
 
 
 MAX_PLATFORM_DECEL_MPS2 = 8.0
@@ -335,6 +335,7 @@ class OdometryJumpSpec(_Strict):
     """The VIO re-localises at ``t_s``: its position jumps by ``offset_m`` and stays shifted."""
 
     t_s: NonNegFloat
+    """When the odometry jumps (s)."""
     offset_m: tuple[FiniteFloat, FiniteFloat, FiniteFloat]
     """The jump of the reported position, in W (m)."""
 
@@ -508,47 +509,79 @@ class MissionSpec(_Strict):
 
 
 class PlannerSpec(_Strict):
-    n_candidates: Annotated[int, Field(ge=1, le=10000)] = 20
-    horizon_min_s: Annotated[float, Field(gt=0, le=60.0, allow_inf_nan=False)] = 1.0
-    horizon_max_s: Annotated[float, Field(gt=0, le=60.0, allow_inf_nan=False)] = 3.0
-    rate_hz: RateHz = 50.0
-    adopt_threshold_m: Annotated[float, Field(ge=0, le=100.0, allow_inf_nan=False)] = 0.2
-    end_acceleration: Literal["free", "platform"] = "platform"
-    """Final acceleration of each candidate: ``free`` as in paper 000, or the platform's predicted
-    acceleration (a turning platform's centripetal acceleration), which removes the lag of free-end
-    plans behind a platform on a curve."""
+    """Overrides of the planner block's parameters (``alight blocks`` lists them with their defaults);
+    None: the block's default."""
 
-    @model_validator(mode="after")
-    def _ordered(self) -> PlannerSpec:
-        if self.horizon_max_s < self.horizon_min_s:
-            raise ValueError("planner.horizon_max_s must be >= horizon_min_s")
-        return self
+    n_candidates: Annotated[int, Field(ge=1, le=10000)] | None = None
+    """Candidates per planning cycle (block default 20)."""
+    horizon_min_s: Annotated[float, Field(gt=0, le=60.0, allow_inf_nan=False)] | None = None
+    """Shortest candidate duration (s; block default 1.0)."""
+    horizon_max_s: Annotated[float, Field(gt=0, le=60.0, allow_inf_nan=False)] | None = None
+    """Longest candidate duration (s; block default 3.0)."""
+    rate_hz: RateHz | None = None
+    """Replanning rate, also the mission logic's (Hz; block default 50)."""
+    adopt_threshold_m: Annotated[float, Field(ge=0, le=100.0, allow_inf_nan=False)] | None = None
+    """A new best whose end is closer than this to the current plan's is not adopted (m; default 0.2)."""
+    end_acceleration: Literal["free", "platform"] | None = None
+    """Final acceleration of each candidate: ``free`` as in paper 000, or ``platform`` (block default),
+    the platform's predicted acceleration, which removes the lag of free-end plans on a curve."""
 
 
 class EstimatorSpec(_Strict):
-    use_turn_rate: bool = True
-    """Unicycle EKF with a turn-rate state (paper 000's model has none: set False for the paper's)."""
-    gating: bool = True
-    accel_noise: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 0.1
-    """Tangential acceleration noise of the platform model (m/s^2/sqrt(Hz))."""
-    heading_noise: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 0.1
-    """Heading-rate noise of the constant-heading model (rad/s/sqrt(Hz))."""
-    turn_accel_noise: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 0.1
-    """Turn-rate noise of the turn-rate model (rad/s^2/sqrt(Hz))."""
+    """Overrides of the platform estimator's parameters; None: the block's default. A key the scenario's
+    estimator does not have is refused (e.g. ``use_turn_rate`` for ``kim_ukf``)."""
+
+    use_turn_rate: bool | None = None
+    """``unicycle_ekf``: a turn-rate state (block default true; paper 000's model has none: false)."""
+    gating: bool | None = None
+    """Reject measurements outside the chi-square gate (``unicycle_ekf``, ``kim_ukf``; default true)."""
+    accel_noise: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
+    """Tangential acceleration noise of the platform model (m/s^2/sqrt(Hz); ``unicycle_ekf`` default 0.1,
+    ``kim_ukf`` 0.5)."""
+    heading_noise: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
+    """``unicycle_ekf``: heading-rate noise of the constant-heading model (rad/s/sqrt(Hz); default 0.1)."""
+    turn_accel_noise: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
+    """``unicycle_ekf``: turn-rate noise of the turn-rate model (rad/s^2/sqrt(Hz); default 0.1)."""
 
 
 class ControllerSpec(_Strict):
-    position_bandwidth_rad_s: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 3.0
-    """Natural frequency of the position loop, critically damped (rad/s)."""
+    """Overrides of the controller block's parameters; None: the block's (or the preset's) value."""
+
+    position_bandwidth_rad_s: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
+    """Natural frequency of the position loop, critically damped (rad/s; block default 3.0)."""
     integral_gain: Annotated[float, Field(ge=0, le=1000.0, allow_inf_nan=False)] | None = None
     """Integral gain on the position error per axis (1/s^3), as an autopilot's position loop has; None:
-    the preset's (off for ``falanga2017``/``groundtruth``/``kim_kaist``, on for ``zamanakos_sdu``, which
-    flies on PX4's integrating loops). Must be below kp * kv of the position loop."""
-    integral_limit_mps2: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 6.0
-    """Largest acceleration the integral may command per axis (m/s^2)."""
+    the preset's (off for ``falanga2017``/``groundtruth``/``kim_kaist``, 2.0 for ``zamanakos_sdu``, which
+    flies on PX4's integrating loops). Must be below kp * kv = 2 * bandwidth^3 of the position loop."""
+    integral_limit_mps2: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
+    """Largest acceleration the integral may command per axis (m/s^2; block default 6.0)."""
     l1_adaptive: bool | None = None
-    """L1 adaptive augmentation of the outer loop (paper 003); None: the preset decides (on for
-    ``kim_kaist``, off otherwise)."""
+    """L1 adaptive augmentation of the outer loop (paper 003): true picks the controller ``faessler_l1``,
+    false ``faessler``; None: the preset's (on for ``kim_kaist``, off otherwise)."""
+
+
+BlockEntry = str | dict[str, Any]
+"""A block: its name, or ``{name: ..., <parameters>}``."""
+
+
+class BlocksSpec(_Strict):
+    """One implementation per stage, each a name or ``{name: ..., <parameters>}`` (``alight blocks``
+    lists them); None: the preset's. A mapping without ``name`` sets parameters of the preset's block."""
+
+    camera: BlockEntry | None = None
+    """``pinhole`` or ``fisheye``, with ``calibration: FILE``."""
+    pad: BlockEntry | None = None
+    """``falanga_tag``, ``apriltag``, ``sdu_marker`` or ``red_target``."""
+    detector: BlockEntry | None = None
+    """``falanga``, ``apriltag``, ``aruco``, ``nfold``, ``sdu``, ``red`` or ``groundtruth``."""
+    geolocator: BlockEntry | None = None
+    """``pnp``, ``flat_earth``, ``homography`` or ``direct``."""
+    platform_estimator: BlockEntry | None = None
+    """``unicycle_ekf``, ``kim_ukf`` or ``sdu_kf``."""
+    controller: BlockEntry | None = None
+    """``faessler`` or ``faessler_l1``."""
+    planner: BlockEntry | None = None
+    """``min_jerk_candidates``."""
 
 
 class QosSpec(_Strict):
@@ -603,6 +636,8 @@ class Scenario(_Strict):
     """One mission."""
 
     preset: str = "groundtruth"
+    """A packaged preset (``mission/preset_data``): ``groundtruth``, ``falanga2017``, ``kim_kaist``,
+    ``zamanakos_sdu``."""
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     duration_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] = 120.0
     """Simulated time limit of the mission (s), at most :data:`MAX_DURATION_S` (3600)."""
@@ -622,15 +657,18 @@ class Scenario(_Strict):
     airframe: str = "f450"
     """The vehicle, for the simulator and the controller alike: a packaged airframe (``f450``, paper
     000's, or ``matrice100``) or an airframe YAML file (``alight.airframes``)."""
+    blocks: BlocksSpec = Field(default_factory=BlocksSpec)
+    """The blocks that fly, overriding the preset's (``docs/blocks.md``)."""
     name: str | None = None
     """Free text naming the scenario in reports."""
 
     @model_validator(mode="after")
-    def _known_preset(self) -> Scenario:
-        from alight.mission.presets import PRESETS  # late import: presets import the blocks
+    def _known_blocks(self) -> Scenario:
+        # late import: the blocks import the algorithms. Refuses an unknown preset or block, a parameter a
+        # block rejects and an incompatible pair, before anything flies (ValueError: one line, the key).
+        from alight.mission.blocks import resolve_blocks
 
-        if self.preset not in PRESETS:
-            raise ValueError(f"unknown preset '{self.preset}', expected one of {sorted(PRESETS)}")
+        resolve_blocks(self)
         return self
 
     @field_validator("airframe")
@@ -650,8 +688,12 @@ class Scenario(_Strict):
 
 def _format_error(source: str, err: ValidationError) -> str:
     first = err.errors()[0]
-    where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    where = ".".join(str(p) for p in first["loc"])
     msg = first["msg"]
+    if not where and first["type"] == "value_error":
+        # a whole-scenario check (the blocks) names its key in its message
+        return f"{source}: {msg.removeprefix('Value error, ')}"
+    where = where or "(top level)"
     extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
     got = first.get("input")
     shown = "" if isinstance(got, dict | list) or got is None else f", got {got!r}"

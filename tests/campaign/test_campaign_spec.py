@@ -161,7 +161,7 @@ BAD_VALUES = [
         {"grid": {"platform.sped_mps": [1.0]}},
         "'platform.sped_mps' is not a scenario key ('sped_mps' not in platform",
     ),
-    ({"grid": {"platfrom.speed_mps": [1.0]}}, "'platfrom' not in the scenario: airframe, camera, contact"),
+    ({"grid": {"platfrom.speed_mps": [1.0]}}, "'platfrom' not in the scenario: airframe, blocks, camera"),
     ({"grid": {"platform.speed_mps.x": [1.0]}}, "'x' not in platform.speed_mps"),
     ({"grid": {SPEED: []}}, "grid.platform.speed_mps: List should have at least 1 item"),
     ({"grid": {"seed": [1, 2]}}, "'seed' cannot be swept"),

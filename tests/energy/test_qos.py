@@ -12,23 +12,22 @@ import pytest
 
 from alight.cameras import PinholeCamera
 from alight.energy.compute import DeviceProfile
-from alight.energy.profile import Frame, ProfileConfig, render_frames, run_profile
 from alight.energy.qos import (
     DEFAULT_PHASE_POLICY,
     FRAME_KINDS,
     LAND_SETTING,
     OBLIQUE_SEARCH_SETTING,
     PhasePolicy,
-    QosDetector,
     QosEnergyModel,
     QosMeasurements,
     QosSetting,
-    ScaledCamera,
     budget_policy,
 )
 from alight.errors import ConfigError
+from alight.evaluation.qos_profile import Frame, ProfileConfig, render_frames, run_profile
 from alight.pads.sdu_pad import SduPad
 from alight.perception.nfold import NFoldDetector
+from alight.perception.qos_detector import QosDetector, ScaledCamera
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.types import Mode, Observation
 
@@ -337,7 +336,7 @@ def test_qos_detector_throttles_to_the_rate_and_counts_frames(frames: list[Frame
 
 
 def test_rescaled_observation_keeps_the_angle_and_scaled_camera_round_trips() -> None:
-    from alight.energy.qos import _rescale
+    from alight.perception.qos_detector import _rescale
 
     o = Observation(t=1.0, kind="sdu", quality=0.8, pixels=[[10.0, 20.0]], yaw_CP=0.7)
     r = _rescale(o, 2.0, 2.0)
@@ -404,7 +403,9 @@ def test_bad_measurement_files_are_config_errors(tmp_path: Path) -> None:
 
 def test_shipped_model_is_well_formed_and_covers_the_default_policy() -> None:
     meas = QosMeasurements.load()
-    assert meas.info["source"] == "alight.energy.profile" and meas.host_mips_1t > 0
+    # the shipped file was measured before the profiler moved out of energy/ (its provenance is kept)
+    assert meas.info["source"] in ("alight.energy.profile", "alight.evaluation.qos_profile")
+    assert meas.host_mips_1t > 0
     for device in ("jetson_nano", "odroid_xu4"):
         prof = DeviceProfile.load(device)
         for mode in prof.modes:

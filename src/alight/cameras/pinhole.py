@@ -98,6 +98,14 @@ class PinholeCamera:
         p = os.fspath(path)
         if not os.path.isfile(p):
             raise InputError(f"{p}: camera calibration file not found")
+        ros = _ros_camera_info(p)
+        if ros is not None:
+            K, dist, w, h = ros
+            w, h = width or w, height or h
+            try:
+                return cls(w, h, K, dist)
+            except ValueError as e:
+                raise InputError(f"{p}: {e}") from None
         try:
             fs = cv2.FileStorage(p, cv2.FILE_STORAGE_READ)
         except cv2.error as e:
@@ -262,6 +270,69 @@ def _monotonic_radius(k: FloatArray, r_limit: float = 20.0) -> float:
     if not bad.any():
         return r_limit
     return float(r[int(np.argmax(bad))])
+
+
+# ROS camera_info distortion models and the number of OpenCV coefficients each is (same order as
+# OpenCV's: k1, k2, p1, p2[, k3[, k4, k5, k6]]). ``equidistant`` (Kannala-Brandt, OpenCV's cv::fisheye) is a
+# different lens model: read as radial-tangential it would silently bend every ray, so it is refused.
+ROS_DISTORTION_MODELS = {"plumb_bob": (4, 5), "rational_polynomial": (8,)}
+
+
+def _ros_camera_info(path: str) -> tuple[FloatArray, FloatArray, int, int] | None:
+    """(K, dist, width, height) of a ROS ``camera_info`` YAML (a file with ``distortion_model``), None for
+    any other file (OpenCV's ``%YAML:1.0`` FileStorage files). Raises InputError for a model it cannot
+    read as OpenCV's radial-tangential one."""
+    import yaml
+
+    if not path.lower().endswith((".yaml", ".yml")):
+        return None
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except (OSError, UnicodeDecodeError):
+        return None
+    if text.lstrip().startswith("%YAML:"):
+        return None  # OpenCV FileStorage syntax, not plain YAML
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None
+    if not isinstance(data, dict) or "distortion_model" not in data:
+        return None
+    model = data["distortion_model"]
+    if model not in ROS_DISTORTION_MODELS:
+        hint = (
+            " (a Kannala-Brandt fisheye: calibrate with OCamCalib and use camera: fisheye)"
+            if model in ("equidistant", "fisheye", "kannala_brandt")
+            else ""
+        )
+        raise InputError(
+            f"{path}: distortion_model {model!r} is not supported{hint}; "
+            f"supported: {sorted(ROS_DISTORTION_MODELS)}"
+        )
+
+    def matrix(key: str) -> FloatArray:
+        node = data.get(key)
+        values = node.get("data") if isinstance(node, dict) else node
+        try:
+            arr = np.asarray(values, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            raise InputError(f"{path}: {key} is not a list of numbers") from None
+        return arr
+
+    K = matrix("camera_matrix")
+    if K.size != 9:
+        raise InputError(f"{path}: camera_matrix must have 9 entries, got {K.size}")
+    dist = matrix("distortion_coefficients") if "distortion_coefficients" in data else matrix("D")
+    if dist.size not in ROS_DISTORTION_MODELS[model]:
+        raise InputError(
+            f"{path}: distortion_model {model} has {ROS_DISTORTION_MODELS[model]} coefficients, "
+            f"got {dist.size}"
+        )
+    w, h = data.get("image_width"), data.get("image_height")
+    if not isinstance(w, int) or not isinstance(h, int):
+        raise InputError(f"{path}: no image_width / image_height")
+    return K.reshape(3, 3), dist, w, h
 
 
 def _read_matrix(fs: cv2.FileStorage, names: tuple[str, ...]) -> FloatArray | None:

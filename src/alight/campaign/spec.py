@@ -127,6 +127,17 @@ def _draw(dist: Uniform | LogUniform | Normal | Choice, rng: Any) -> Any:
     return copy.deepcopy(dist.values[index])
 
 
+class BlockSet(_Strict):
+    """A named set of blocks, flown and reported like a preset: the ``name`` labels its missions (the
+    ``preset`` column of results.csv, the groups of the report)."""
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._+-]*$", max_length=60)]
+    preset: str | None = None
+    """The preset it starts from; default: the base scenario's."""
+    blocks: dict[str, Any] = Field(default_factory=dict)
+    """The scenario's ``blocks:`` entries (stage -> name or ``{name: ..., <parameters>}``)."""
+
+
 class CampaignSpec(_Strict):
     """The campaign file as written."""
 
@@ -135,8 +146,9 @@ class CampaignSpec(_Strict):
     description: str | None = None
     base: dict[str, Any] | str = Field(default_factory=dict)
     """The base scenario: a mapping of scenario keys, or a scenario file relative to the campaign file."""
-    presets: Annotated[list[str], Field(min_length=1)] | None = None
-    """Presets to compare; default: the base scenario's preset."""
+    presets: Annotated[list[str | BlockSet], Field(min_length=1)] | None = None
+    """Presets to compare, each a preset name or a named block set (``{name, preset, blocks}``), compared
+    in the reports as presets are; default: the base scenario's preset."""
     seeds_per_condition: Annotated[int, Field(ge=1)] = 1
     seed: Annotated[int, Field(ge=0)] = 0
     """Root of the SeedSequence tree every scenario seed and every sampled value comes from."""
@@ -210,6 +222,8 @@ def _format_validation(prefix: str, err: ValidationError) -> str:
     extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
     got = first.get("input")
     shown = "" if isinstance(got, dict | list) or got is None else f", got {got!r}"
+    if not where and first["type"] == "value_error":
+        msg = msg.removeprefix("Value error, ")  # a whole-scenario check (the blocks) names its key
     where = f"{where}: " if where else ""
     return f"{prefix}: {where}{msg}{shown}{extra}"
 
@@ -242,6 +256,15 @@ def _set(tree: dict[str, Any], path: str, value: Any) -> None:
     for part in parts[:-1]:
         node = node[part]
     node[parts[-1]] = copy.deepcopy(value)
+
+
+def _grouped(tree: Mapping[str, Any], preset: str, blocks: Mapping[str, Any]) -> dict[str, Any]:
+    """The mission's scenario for a group: its preset, and a block set's entries over the blocks."""
+    out = copy.deepcopy(dict(tree))
+    out["preset"] = preset
+    if blocks:
+        out["blocks"] = {**(out.get("blocks") or {}), **copy.deepcopy(dict(blocks))}
+    return out
 
 
 def _short(params: Mapping[str, Any], limit: int = 120) -> str:
@@ -296,12 +319,21 @@ def expand_campaign(
         base = base.model_copy(update={"duration_s": spec.duration_s})
     base_tree = base.model_dump(mode="json")
 
-    presets = list(spec.presets) if spec.presets is not None else [base.preset]
-    for p in presets:
-        if p not in PRESETS:
-            raise ConfigError(f"{source}: presets: unknown preset '{p}', expected one of {sorted(PRESETS)}")
-    if len(set(presets)) != len(presets):
-        raise ConfigError(f"{source}: presets: a preset is listed twice ({presets})")
+    entries = list(spec.presets) if spec.presets is not None else [base.preset]
+    # label -> (preset, blocks overrides): a preset stands for itself; a block set for its blocks
+    groups: dict[str, tuple[str, dict[str, Any]]] = {}
+    for e in entries:
+        label, preset_name, blocks = (
+            (e, e, {}) if isinstance(e, str) else (e.name, e.preset or base.preset, dict(e.blocks))
+        )
+        if preset_name not in PRESETS:
+            raise ConfigError(
+                f"{source}: presets: unknown preset '{preset_name}', expected one of {sorted(PRESETS)}"
+            )
+        if label in groups:
+            raise ConfigError(f"{source}: presets: '{label}' is listed twice")
+        groups[label] = (preset_name, blocks)
+    presets = list(groups)
 
     # -- the parameters and their check against the scenario's keys ---------------------------------------
     paths: list[str] = []
@@ -380,15 +412,16 @@ def expand_campaign(
         for key, value in cond.items():
             _set(tree, key, value)
         for preset in presets:
-            tree["preset"] = preset
             try:
-                checked = Scenario.model_validate(tree)
+                checked = Scenario.model_validate(_grouped(tree, *groups[preset]))
             except ValidationError as err:
                 what = f"condition {cid} ({_short(cond)})" if cond else f"condition {cid}"
                 raise ConfigError(_format_validation(f"{source}: {what}, preset {preset}", err)) from None
         # Values as the scenario holds them (e.g. an int given for a float), so results.csv shows them
         # in the same form as result.json.
-        tree = checked.model_dump(mode="json")
+        dumped = checked.model_dump(mode="json")
+        dumped["blocks"] = copy.deepcopy(tree.get("blocks"))  # without the last group's block set
+        tree = dumped
         params = {p: _get(tree, p) for p in paths}
         conditions.append(Condition(index, cid, params))
         trees.append(tree)
@@ -409,8 +442,7 @@ def expand_campaign(
             seed = mission_seed(spec.seed, branch, r)
             for preset in presets:
                 mid = mission_id(cond.condition_id, preset, r)
-                scenario = copy.deepcopy(tree)
-                scenario["preset"] = preset
+                scenario = _grouped(tree, *groups[preset])
                 scenario["seed"] = seed
                 if "name" not in paths:
                     scenario["name"] = f"{spec.name} {mid}"

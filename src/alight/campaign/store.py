@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from alight.errors import InputError
+from alight.evaluation.result import OUTCOMES as OUTCOMES  # re-exported: the report reads it here
+from alight.evaluation.result import SCENARIO_YAML, MissionResult, write_scenario_yaml
 from alight.types import PIPELINE_BLOCKS
 
 RESULTS_CSV = "results.csv"
@@ -36,44 +38,9 @@ BLOCK_TIME_COLUMN = {block: f"{block}_time_s" for block in PIPELINE_BLOCKS}
 """The column of each pipeline block's wall time in the mission (s), from ``result.json``'s
 ``block_time_s``."""
 BLOCK_TIME_COLUMNS = tuple(BLOCK_TIME_COLUMN.values())
-RESULT_COLUMNS = (
-    "outcome",
-    "success",
-    "touchdown_error_m",
-    "touchdown_rel_speed_mps",
-    "touchdown_rel_vertical_speed_mps",
-    "time_to_land_s",
-    "time_first_detection_s",
-    "energy_flight_J",
-    "energy_compute_J",
-    "detections",
-    "go_arounds",
-    "platform_estimate_rmse_m",
-    "false_detections",
-    "false_lock",
-    *BLOCK_TIME_COLUMNS,
-    "simulated_time_s",
-    "wall_time_s",
-    "mission_dir",
-    "error",
-)
-NUMERIC_COLUMNS = (
-    "touchdown_error_m",
-    "touchdown_rel_speed_mps",
-    "touchdown_rel_vertical_speed_mps",
-    "time_to_land_s",
-    "time_first_detection_s",
-    "energy_flight_J",
-    "energy_compute_J",
-    "detections",
-    "go_arounds",
-    "platform_estimate_rmse_m",
-    "false_detections",
-    *BLOCK_TIME_COLUMNS,
-    "simulated_time_s",
-    "wall_time_s",
-)
-OUTCOMES = ("landed", "crashed", "timeout", "aborted", "error")
+RESULT_COLUMNS = (*MissionResult.columns(), "mission_dir", "error")
+"""The result columns, from :class:`alight.evaluation.result.MissionResult` (the one list)."""
+NUMERIC_COLUMNS = MissionResult.numeric_columns()
 
 
 def columns_for(swept_parameters: Sequence[str]) -> list[str]:
@@ -284,6 +251,9 @@ def write_mission_dir(
         dest.write_bytes(data)
     if error_text is not None:
         (target / ERROR_TXT).write_text(error_text, encoding="utf-8")
+    scenario = result.get("scenario")
+    if isinstance(scenario, Mapping):
+        write_scenario_yaml(target / SCENARIO_YAML, scenario)
     write_json(target / RESULT_JSON, dict(result))
     return rel
 

@@ -1,8 +1,9 @@
 """Energy: flight energy from the rotor model; compute energy of the onboard blocks on a device power
 profile, through a powprofiler-style model of quality-of-service settings (paper 004).
 
-``profile`` (the profiler that measures the model) is not imported here: it renders frames with the
-simulator, which the onboard pipeline must not depend on.
+A leaf: it depends on no pipeline stage. The detector that runs at a QoS setting is a perception block
+(:mod:`alight.perception.qos_detector`); the profiler that measures the model renders frames with the
+simulator and lives with the evaluation tooling (:mod:`alight.evaluation.qos_profile`).
 """
 
 from alight.energy.compute import DeviceProfile, compute_energy_J
@@ -10,7 +11,6 @@ from alight.energy.flight import RotorPowerModel, flight_energy_J
 from alight.energy.qos import (
     DEFAULT_PHASE_POLICY,
     PhasePolicy,
-    QosDetector,
     QosEnergyModel,
     QosSetting,
     budget_policy,
@@ -20,7 +20,6 @@ __all__ = [
     "DEFAULT_PHASE_POLICY",
     "DeviceProfile",
     "PhasePolicy",
-    "QosDetector",
     "QosEnergyModel",
     "QosSetting",
     "RotorPowerModel",

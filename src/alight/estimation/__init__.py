@@ -59,6 +59,29 @@ class PlatformEstimator(Protocol):
 
 
 @runtime_checkable
+class EgoFed(Protocol):
+    """A platform estimator that takes the vehicle's own state as input (paper 004's filter on the
+    relative position): the Pipeline feeds it the ego estimate at each control tick and before each
+    measurement."""
+
+    def set_ego(self, ego: EgoState) -> None: ...
+
+
+@runtime_checkable
+class PixelMeasured(Protocol):
+    """A platform estimator with an image measurement model (paper 003's UKF): it fuses the detection's
+    pixel with the ego state at the capture time, and predicts the pixel for a gating detector."""
+
+    def update_pixel(self, t: float, px: FloatArray, ego: Any) -> bool:
+        """Fuse the pixel ``(u, v)`` seen at capture time ``t`` (s); True when used."""
+        ...
+
+    def predict_pixel(self, t: float, ego: Any, n_sigma: float = 3.0) -> tuple[FloatArray, float] | None:
+        """The predicted pixel at ``t`` for the ego state then, and a gate radius (px); None without one."""
+        ...
+
+
+@runtime_checkable
 class EgoEstimator(Protocol):
     """Estimates the vehicle's own state from IMU samples and odometry."""
 
@@ -128,6 +151,8 @@ __all__ = [
     "EGO_REGISTRY",
     "REGISTRY",
     "EgoEkf",
+    "EgoFed",
+    "PixelMeasured",
     "EgoEkfConfig",
     "EgoEstimator",
     "KimUkf",

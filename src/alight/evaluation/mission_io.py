@@ -13,6 +13,7 @@ from alight.errors import InputError
 from alight.evaluation.log import save_arrays
 from alight.evaluation.replay import REPLAY_GIF, FrameRecorder, write_replay
 from alight.evaluation.report import write_mission_report
+from alight.evaluation.result import SCENARIO_YAML, write_scenario_yaml
 from alight.evaluation.runner import FrameSink, MissionRun, run_mission
 from alight.scenario import Scenario
 
@@ -84,5 +85,6 @@ def fly_to_dir(
         )
     if report:
         write_mission_report(out, run.result, run.log, run.events)
+    write_scenario_yaml(out / SCENARIO_YAML, scenario.model_dump(mode="json"))
     write_result(out, run.result)
     return run

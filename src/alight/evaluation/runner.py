@@ -287,7 +287,7 @@ def run_mission(
     every_odometry = round(1.0 / (40.0 * TICK_DT))
     every_range = round(1.0 / (100.0 * TICK_DT))
     every_control = round(1.0 / (100.0 * TICK_DT))
-    every_mission = max(1, round(1.0 / (s.planner.rate_hz * TICK_DT)))
+    every_mission = max(1, round(1.0 / (preset.planner_rate_hz * TICK_DT)))
     every_log = round(1.0 / (50.0 * TICK_DT))
     perception_period = 1.0 / pc.rate_hz
     next_capture = 0.0

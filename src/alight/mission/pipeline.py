@@ -12,15 +12,19 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from alight.estimation import EgoFed, PixelMeasured
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
+from alight.perception import ModeAware, PixelGated, RangeAware, TiltAware
+from alight.perception.geolocation import pad_centre_pixel
 from alight.types import (
     PIPELINE_BLOCKS,
     Command,
@@ -168,16 +172,21 @@ class Pipeline:
         # pipeline does (the simulator only models the contact).
         self.touchdown = touchdown_detector or TouchdownDetector(mission.config.touchdown)
         self.history = EgoHistory()
+        # The context a block declares it takes (alight.perception / alight.estimation Protocols),
+        # checked once here; the hot path calls what was bound, or nothing.
         # Estimators of the relative position (paper 004's filter) take the vehicle's own motion as input.
-        self._feed_ego = getattr(platform_estimator, "set_ego", None)
-        # Estimators with an image measurement model (paper 003's UKF) take the pixel itself, and may
+        pe = platform_estimator
+        self._feed_ego = pe.set_ego if isinstance(pe, EgoFed) else None
+        # Estimators with an image measurement model (paper 003's UKF) take the pixel itself, and
         # predict where the target will be for a detector that gates its candidates.
-        self._update_pixel = getattr(platform_estimator, "update_pixel", None)
-        self._predict_pixel = getattr(platform_estimator, "predict_pixel", None)
-        self._set_prediction = getattr(detector, "set_prediction", None)
-        self._set_mode = getattr(detector, "set_mode", None)
-        self._set_view_tilt = getattr(detector, "set_view_tilt", None)
-        self._set_range = getattr(detector, "set_range", None)  # a detector with a close-range stage
+        self._update_pixel: Callable[[float, FloatArray, Any], bool] | None = None
+        self._predict_pixel: Callable[[float, Any], tuple[FloatArray, float] | None] | None = None
+        if isinstance(pe, PixelMeasured):
+            self._update_pixel, self._predict_pixel = pe.update_pixel, pe.predict_pixel
+        self._set_prediction = detector.set_prediction if isinstance(detector, PixelGated) else None
+        self._set_mode = detector.set_mode if isinstance(detector, ModeAware) else None
+        self._set_view_tilt = detector.set_view_tilt if isinstance(detector, TiltAware) else None
+        self._set_range = detector.set_range if isinstance(detector, RangeAware) else None
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -288,12 +297,13 @@ class Pipeline:
         self._target = None
         ego = self.ego() if self._feed_ego is not None else None
         t0 = time.perf_counter()
-        if self._feed_ego is not None:
+        if self._feed_ego is not None and ego is not None:
             self._feed_ego(ego)
-        if self._update_pixel is not None and best.pixels.shape[0] >= 1:
-            # The estimator fuses the pixel through its own camera model; the geolocated point above is
-            # what the pipeline reports (logs, detections) for the same image.
-            used = self._update_pixel(t_capture, best.pixels[0], self.history.state_at(t_capture))
+        centre = pad_centre_pixel(best) if self._update_pixel is not None else None
+        if self._update_pixel is not None and centre is not None:
+            # The estimator fuses the pad centre's pixel through its own camera model; the geolocated
+            # point above is what the pipeline reports (logs, detections) for the same image.
+            used = self._update_pixel(t_capture, centre, self.history.state_at(t_capture))
         else:
             used = self.platform_estimator.update(measurement)
         self.stats.charge("platform_estimator", t0)

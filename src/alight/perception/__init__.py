@@ -8,10 +8,13 @@ into a platform measurement in the world frame.
   at the capture time: ``pnp`` (PnP on the observation's points) and ``direct`` (observations that carry
   ``p_CP`` already, like the ground-truth sensor).
 
-Hooks: a detector may also have methods that the :class:`alight.mission.pipeline.Pipeline` calls before
-each image when they exist: ``set_prediction`` (where the estimator expects the target), ``set_mode`` and
-``set_view_tilt`` (the quality-of-service wrapper) and ``set_range`` (the range finder's reading, for the
-Falanga detector's close-range stage). Without them, ``detect`` depends on the image alone.
+Context: besides the image and its capture time, a detector may declare that it takes the flight's
+context, by satisfying one of the Protocols below; the :class:`alight.mission.pipeline.Pipeline` checks
+them once, when it is built, and then calls them before each image (or at each mode change):
+:class:`PixelGated` (where the platform estimator expects the target, and the gate radius),
+:class:`RangeAware` (the range finder's reading: the Falanga detector's close-range stage),
+:class:`ModeAware` (the mission phase) and :class:`TiltAware` (the camera's tilt from nadir; the
+quality-of-service wrapper). A detector that declares none depends on the image and its capture time only.
 
 :data:`REGISTRY` and :data:`GEOLOCATORS` map names to factories, so a preset picks blocks by name. A new
 detector: write ``perception/<name>.py`` with a class that satisfies :class:`Detector`, add a factory here,
@@ -42,6 +45,41 @@ class Detector(Protocol):
     def detect(self, image: Any, t: float) -> list[Observation]:
         """Observations in ``image`` (grey or BGR uint8, shape (H, W) or (H, W, 3)) captured at ``t`` (s);
         ``[]`` when nothing is found. Must not raise on an empty, tiny or uniform image."""
+        ...
+
+
+@runtime_checkable
+class PixelGated(Protocol):
+    """A detector that gates its candidates with the estimator's predicted pixel."""
+
+    def set_prediction(self, px: FloatArray | None, radius_px: float | None = None) -> None:
+        """The predicted pixel ``(u, v)`` of the target in the next image and the gate radius (px); None
+        when there is no prediction."""
+        ...
+
+
+@runtime_checkable
+class RangeAware(Protocol):
+    """A detector that uses the range finder's reading (m, to the surface below; None when invalid)."""
+
+    def set_range(self, range_m: float | None) -> None: ...
+
+
+@runtime_checkable
+class ModeAware(Protocol):
+    """A detector whose processing follows the mission phase (quality of service)."""
+
+    def set_mode(self, mode: Any) -> None:
+        """The mission's new :class:`alight.types.Mode` (called at each mode change)."""
+        ...
+
+
+@runtime_checkable
+class TiltAware(Protocol):
+    """A detector whose processing follows the obliquity of the view."""
+
+    def set_view_tilt(self, t: float, tilt_rad: float) -> None:
+        """The camera's tilt from nadir at time ``t`` (rad), at the planner's rate."""
         ...
 
 
@@ -140,6 +178,10 @@ __all__ = [
     "RedTargetDetector",
     "RedTargetDetectorConfig",
     "SduMarkerDetector",
+    "ModeAware",
+    "PixelGated",
+    "RangeAware",
+    "TiltAware",
     "merge_observations",
     "solve_pnp",
 ]

@@ -215,3 +215,34 @@ def level_pad_yaw(R_WC: FloatArray, yaw_CP: float) -> float | None:
 
 
 __all__ = ["DirectGeolocator", "PnpGeolocator", "level_pad_yaw", "skew", "world_covariance", "wrap_yaw"]
+
+
+def pad_centre_pixel(obs: Observation) -> FloatArray | None:
+    """The pixel of the pad's centre in an observation, for an estimator that measures one pixel.
+
+    A blob (no pad points) is its own centre: ``pixels[0]``. With four or more points on the pad's plane
+    the centre is mapped through their homography (DLT, the image's lens distortion neglected over the
+    pad, which is what a single pixel measurement of the centre does anyway); a point at the centre is
+    taken as it is. None when the observation has no pixel."""
+    px = obs.pixels
+    if px.shape[0] == 0:
+        return None
+    pts = obs.points_P
+    if pts is None or pts.shape[0] < 4:
+        if pts is not None:
+            at_centre = np.flatnonzero(np.linalg.norm(pts[:, :2], axis=1) < 1e-9)
+            if at_centre.size:
+                return np.asarray(px[at_centre[0]], dtype=np.float64)
+        return np.asarray(px[0], dtype=np.float64)
+    x, y = pts[:, 0], pts[:, 1]
+    u, v = px[:, 0], px[:, 1]
+    n = pts.shape[0]
+    A = np.zeros((2 * n, 9))
+    A[0::2, 0], A[0::2, 1], A[0::2, 2] = x, y, 1.0
+    A[0::2, 6], A[0::2, 7], A[0::2, 8] = -u * x, -u * y, -u
+    A[1::2, 3], A[1::2, 4], A[1::2, 5] = x, y, 1.0
+    A[1::2, 6], A[1::2, 7], A[1::2, 8] = -v * x, -v * y, -v
+    H = np.linalg.svd(A)[2][-1].reshape(3, 3)
+    if abs(H[2, 2]) < 1e-12 or not np.isfinite(H).all():
+        return np.asarray(px[0], dtype=np.float64)
+    return np.array([H[0, 2] / H[2, 2], H[1, 2] / H[2, 2]])

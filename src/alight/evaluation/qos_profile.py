@@ -1,7 +1,8 @@
 """The QoS profiler: powprofiler's sampling step (paper 004, Sec. III-A) for the SDU landing-marker detector.
 
 For every (image_scale, max_kernel_px) pair of a coarse grid it measures the host CPU time per frame of
-:class:`alight.perception.sdu_marker.SduMarkerDetector` run through :class:`alight.energy.qos.QosDetector`
+:class:`alight.perception.sdu_marker.SduMarkerDetector` run through
+:class:`alight.perception.qos_detector.QosDetector`
 (resize, capped adaptive kernel search, ArUco, fusion, mapping back), on frames rendered with alight's
 :class:`~alight.sim.render.Renderer` through the default downward camera (752 x 480, 90 deg) over grass,
 asphalt and concrete, with sensor noise. The frame mix has four kinds (:data:`~alight.energy.qos.FRAME_KINDS`,
@@ -26,7 +27,7 @@ The numbers are host-specific; :class:`alight.energy.qos.QosEnergyModel` turns t
 with a device profile (:mod:`alight.energy.compute`), using the host's single-thread 7-Zip rating stored
 in the file (measured with ``7z b -mmt1`` when 7-Zip is installed, else given with ``--host-mips``).
 
-Run: ``python -m alight.energy.profile --out src/alight/energy/models/sdu_qos.yaml`` (about a minute;
+Run: ``python -m alight.evaluation.qos_profile --out src/alight/energy/models/sdu_qos.yaml`` (about a minute;
 ``--quick`` for a seconds-long smoke run).
 """
 
@@ -51,8 +52,9 @@ import numpy as np
 
 from alight.cameras import CameraMount, PinholeCamera, camera_pose_W
 from alight.energy.compute import HOST_MIPS_1T
-from alight.energy.qos import FRAME_KINDS, QosDetector, QosMeasurements, QosSetting, measurements_info
+from alight.energy.qos import FRAME_KINDS, QosMeasurements, QosSetting, measurements_info
 from alight.pads.sdu_pad import SduPad
+from alight.perception.qos_detector import QosDetector
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.textures import make_ground_texture
@@ -299,7 +301,7 @@ def run_profile(
     )
     load1 = os.getloadavg() if hasattr(os, "getloadavg") else None
     info = measurements_info(
-        source="alight.energy.profile",
+        source="alight.evaluation.qos_profile",
         detector="SduMarkerDetector(SduPad.default(1.5 m), camera=default_downward) through QosDetector",
         camera="PinholeCamera.default_downward(): 752 x 480 px, f = 400 px, 90.7 deg horizontal",
         timer="time.process_time, cv2.setNumThreads(1)",
@@ -338,7 +340,7 @@ def run_profile(
 
 
 HEADER = """QoS -> CPU-time measurements of paper 004's landing-marker detector (SduMarkerDetector through
-QosDetector), written by alight.energy.profile (see its module docstring for the method).
+QosDetector), written by alight.evaluation.qos_profile (see its module docstring for the method).
 Tables are indexed [image_scale][max_kernel_px] (the axes below); cpu_s_per_frame is host CPU seconds per
 processed frame; detection_rate is the fraction of frames with the pad centre in view detected within
 tolerance; false_detection_rate the fraction of frames without the pad with any detection.
@@ -364,7 +366,9 @@ def table_text(meas: QosMeasurements, key: str = "mix") -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m alight.energy.profile", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m alight.evaluation.qos_profile", description=__doc__.split("\n")[0]
+    )
     ap.add_argument("--out", required=True, help="measurements file to write (YAML)")
     ap.add_argument("--quick", action="store_true", help="a seconds-long smoke run (2 x 2 grid, 4 frames)")
     ap.add_argument("--frames-per-kind", type=int, default=None)

@@ -1,0 +1,101 @@
+"""The import graph of the package, declared: each subpackage (and top-level module) may import only the
+ones listed for it. A new dependency is a design decision: add it here, with the reason in DESIGN.md."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[2] / "src" / "alight"
+
+_MODELS = {"types", "errors", "airframe", "airframes", "cameras", "pads", "rotation_kernels", "numerics"}
+_STAGES = {"perception", "estimation", "planning", "control", "mission", "energy"}
+
+ALLOWED: dict[str, set[str]] = {
+    "types": set(),
+    "errors": set(),
+    "rotation_kernels": {"types"},
+    "airframe": {"types", "errors"},
+    # the packaged airframe files and their loader
+    "airframes": {"types", "errors", "airframe"},
+    # shared numerics (polynomial roots, DLT/RANSAC, run labelling): a leaf below every stage
+    "numerics": {"types", "errors"},
+    "cameras": {"types", "errors", "numerics"},
+    "pads": {"types", "errors"},
+    # a leaf: the energy and QoS models and policies, no pipeline stage, no simulator
+    "energy": {"types", "errors"},
+    "perception": {"types", "errors", "cameras", "pads", "energy", "numerics"},
+    "estimation": {"types", "errors", "cameras", "rotation_kernels", "numerics"},
+    "planning": {"types", "errors", "airframe", "numerics"},
+    "control": {"types", "errors", "airframe", "rotation_kernels"},
+    "mission": _MODELS | {"perception", "estimation", "planning", "control", "energy"},
+    # the fault models take their scenario sections (for annotations only: no runtime import)
+    "sim": {"types", "errors", "airframe", "cameras", "pads", "rotation_kernels", "scenario"},
+    # the scenario validates its blocks against the registry (alight.mission.blocks) and its airframe
+    "scenario": {"errors", "mission", "airframes"},
+    "evaluation": _MODELS | _STAGES | {"sim", "scenario", "__init__"},
+    "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "__init__"},
+    # compiles the numba kernels before a worker reports ready, by flying short missions
+    "warmup": {"scenario", "mission", "evaluation"},
+    "campaign": {"types", "errors", "scenario", "mission", "evaluation", "warmup", "__init__"},
+    "cli": _MODELS
+    | _STAGES
+    | {"sim", "scenario", "evaluation", "campaign", "interfaces", "warmup", "__init__"},
+    "__init__": set(),
+}
+
+
+def _unit(path: Path) -> str:
+    rel = path.relative_to(SRC)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def _imports(path: Path) -> set[str]:
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        for n in names:
+            if n == "alight":
+                out.add("__init__")
+            elif n.startswith("alight."):
+                out.add(n.split(".")[1])
+    return out
+
+
+def test_every_subpackage_is_declared() -> None:
+    units = {_unit(p) for p in SRC.rglob("*.py")}
+    assert units <= set(ALLOWED), sorted(units - set(ALLOWED))
+
+
+@pytest.mark.parametrize("unit", sorted(ALLOWED))
+def test_imports_follow_the_declared_graph(unit: str) -> None:
+    files = [p for p in SRC.rglob("*.py") if _unit(p) == unit]
+    for path in files:
+        bad = _imports(path) - ALLOWED[unit] - {unit}
+        assert not bad, (
+            f"{path.relative_to(SRC.parent)} imports alight.{sorted(bad)} (allowed: {sorted(ALLOWED[unit])})"
+        )
+
+
+def test_the_graph_has_no_cycle_through_the_pipeline_stages() -> None:
+    # the stages and the shared models form a DAG (the scenario <-> mission pair is a late import)
+    graph = {u: ALLOWED[u] & (_MODELS | _STAGES) for u in _MODELS | _STAGES}
+    seen: dict[str, int] = {}
+
+    def visit(u: str) -> None:
+        assert seen.get(u) != 1, f"cycle through {u}"
+        if seen.get(u) == 2:
+            return
+        seen[u] = 1
+        for v in graph[u]:
+            visit(v)
+        seen[u] = 2
+
+    for u in graph:
+        visit(u)
