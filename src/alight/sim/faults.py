@@ -4,14 +4,16 @@ The runner builds one :class:`Faults` from the scenario's ``faults`` section and
 data on their way into the pipeline. Nothing here knows the pipeline's internals: a fault only changes
 (or withholds) what a sensor hands over, exactly as a real failure would. Where each fault acts:
 
-- camera frames (vision presets), after rendering, before the detector: lost frames are not delivered
+- camera frames (vision presets), before the detector: lost frames are not delivered
   (``dropout_prob``: a frame the driver never hands over), a blacked-out camera delivers dark frames
   (``blackouts``: a covered lens or a dead sensor still produces frames, all black), and corrupted frames
   are delivered corrupted (``corruption``: noise bursts, occlusion, exposure spikes, frozen frames,
   stripes). For the ground-truth sensor (no image) dropouts and blackouts stay in
   :class:`~alight.sim.truth_perception.TruthPerception`, as before, and a frozen frame re-delivers the
   previous report with the new capture time; the image corruptions have no meaning without an image and
-  are refused (:meth:`Faults.check_preset`).
+  are refused (:meth:`Faults.check_preset`). The runner draws a camera frame's fate (:meth:`Faults.fate`)
+  when it is captured, before rendering, and renders only a frame that is delivered and not dark
+  (:meth:`Faults.deliver` then corrupts it): a lost or dark frame costs no rendering.
 - detection latency (every preset): each frame reaches the pipeline ``perception.latency_s +
   faults.latency_s`` after capture, plus a uniform jitter of +-``latency_jitter_s``, never before the
   frame captured before it (a detector processes frames one after the other, so results come out in
