@@ -10,6 +10,7 @@ to it, nor to kim_kaist's omnidirectional camera) and compares the pixels where 
 Run: ``python benchmarks/deck_homography_probe.py [--repeats 50]``.
 """
 
+# ruff: noqa: B023  (each closure below is timed and called only within the loop iteration defining it)
 from __future__ import annotations
 
 import argparse
@@ -75,15 +76,26 @@ def main() -> None:
             d = r._deck_maps(p_WC, R_WC, p_WP, yaw)
             assert d is not None
             b = r._buf
-            out = cv2.remap(lev.image, b.pmx[: nr * nc].reshape(nr, nc), b.pmy[: nr * nc].reshape(nr, nc),
-                            cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            out = cv2.remap(
+                lev.image,
+                b.pmx[: nr * nc].reshape(nr, nc),
+                b.pmy[: nr * nc].reshape(nr, nc),
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REPLICATE,
+            )
             return out, b.mask[: nr * nc].reshape(nr, nc).copy()
 
         def warp_path() -> tuple[np.ndarray, np.ndarray]:
             fl = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
             out = cv2.warpPerspective(lev.image, Hroi, (nc, nr), flags=fl, borderMode=cv2.BORDER_REPLICATE)
-            m = cv2.warpPerspective(ones, Hroi, (nc, nr), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            m = cv2.warpPerspective(
+                ones,
+                Hroi,
+                (nc, nr),
+                flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=0,
+            )
             return out, m
 
         for fn, acc in ((remap_path, t_remap), (warp_path, t_warp)):
@@ -121,12 +133,19 @@ def main() -> None:
 
         def ground_remap() -> np.ndarray:
             _ground_maps(r._hx, r._hy, r._hz, M32, min_den, n, b.gmx, b.gmy)
-            return cv2.remap(lev.image, b.gmx.reshape(H2, W2), b.gmy.reshape(H2, W2), cv2.INTER_NEAREST,
-                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            return cv2.remap(
+                lev.image,
+                b.gmx.reshape(H2, W2),
+                b.gmy.reshape(H2, W2),
+                cv2.INTER_NEAREST,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=0,
+            )
 
         def ground_warp() -> np.ndarray:
-            return cv2.warpPerspective(tile, Hh, (W2, H2), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                                       borderMode=cv2.BORDER_WRAP)
+            return cv2.warpPerspective(
+                tile, Hh, (W2, H2), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_WRAP
+            )
 
         for fn, acc in ((ground_remap, g_remap), (ground_warp, g_warp)):
             fn()
@@ -138,21 +157,28 @@ def main() -> None:
         g_diff += int(np.count_nonzero(ga != gb))
         g_px += ga.size
     d = np.concatenate(diffs)
-    print(json.dumps({
-        "frames": len(t_remap),
-        "deck_remap_ms_median": round(float(np.median(t_remap)), 3),
-        "deck_warp_ms_median": round(float(np.median(t_warp)), 3),
-        "ratio_warp_over_remap": round(float(np.median(np.array(t_warp) / np.array(t_remap))), 3),
-        "abs_diff_mean_dn": round(float(d.mean()), 4),
-        "abs_diff_max_dn": int(d.max()),
-        "pixels_differing_fraction": round(float(np.mean(d > 0)), 5),
-        "mask_disagreement_fraction": round(mask_xor / max(px, 1), 5),
-        "ground_half_remap_ms_median": round(float(np.median(g_remap)), 3),
-        "ground_half_warp_ms_median": round(float(np.median(g_warp)), 3),
-        "ground_ratio_warp_over_remap": round(float(np.median(np.array(g_warp) / np.array(g_remap))), 3),
-        "ground_pixels_differing_fraction": round(g_diff / max(g_px, 1), 5),
-        "load1": os.getloadavg()[0],
-    }, indent=1))
+    print(
+        json.dumps(
+            {
+                "frames": len(t_remap),
+                "deck_remap_ms_median": round(float(np.median(t_remap)), 3),
+                "deck_warp_ms_median": round(float(np.median(t_warp)), 3),
+                "ratio_warp_over_remap": round(float(np.median(np.array(t_warp) / np.array(t_remap))), 3),
+                "abs_diff_mean_dn": round(float(d.mean()), 4),
+                "abs_diff_max_dn": int(d.max()),
+                "pixels_differing_fraction": round(float(np.mean(d > 0)), 5),
+                "mask_disagreement_fraction": round(mask_xor / max(px, 1), 5),
+                "ground_half_remap_ms_median": round(float(np.median(g_remap)), 3),
+                "ground_half_warp_ms_median": round(float(np.median(g_warp)), 3),
+                "ground_ratio_warp_over_remap": round(
+                    float(np.median(np.array(g_warp) / np.array(g_remap))), 3
+                ),
+                "ground_pixels_differing_fraction": round(g_diff / max(g_px, 1), 5),
+                "load1": os.getloadavg()[0],
+            },
+            indent=1,
+        )
+    )
 
 
 if __name__ == "__main__":
