@@ -4,8 +4,9 @@ Flies the missions of ``bench_vision_missions`` (after the same warm-up) with ti
 ``Renderer.render``, ``FalangaTagDetector.detect`` and ``PnpGeolocator.locate``, and prints, per mission:
 the real-time factor, the milliseconds per simulated second of each stage and of the rest (physics,
 sensors, estimators, planner, controller), and the milliseconds per frame by the size of the tag in the
-image (no detection, then the tag's larger pixel extent; each frame is rendered at its capture time and
-detected a latency later, so rendering is given per frame on average only). OpenCV runs on one thread.
+image (no detection, then the tag's larger pixel extent; rendering is given per frame on average only:
+a frame is rendered from its capture-time poses when it reaches the detector, a latency later, and only
+when the detector will use it). OpenCV runs on one thread.
 The timers cost a few microseconds per call, so the real-time factor here is slightly below
 ``alight bench``'s.
 

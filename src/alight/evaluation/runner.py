@@ -39,9 +39,10 @@ from alight.evaluation.physics import (
     N_IN,
     tick_batch,
 )
+from alight.mission.pipeline import Pipeline
 from alight.mission.presets import build_preset
 from alight.scenario import Scenario
-from alight.sim.faults import Faults, speed_profile
+from alight.sim.faults import Faults, FrameFate, speed_profile
 from alight.sim.platform import Platform, PlatformConfig
 from alight.sim.quadrotor import (
     CP_K,
@@ -173,17 +174,56 @@ FrameSink = Callable[[float, np.ndarray, list[Observation]], None]
 """Receives each camera frame a vision preset processed: capture time (s), the image, the detections."""
 
 
+@dataclass(frozen=True)
+class _Shot:
+    """A camera frame taken and not yet rendered: what it shows is fixed at its capture time."""
+
+    p_WC: np.ndarray
+    R_WC: np.ndarray
+    p_WP: np.ndarray
+    yaw: float
+    w_WB_B: np.ndarray
+    fate: FrameFate
+    noise_offset: tuple[int, int] | None
+
+
+def _develop(
+    shot: _Shot, t_cap: float, renderer: Renderer, faults: Faults, pipeline: Pipeline, render_all: bool
+) -> np.ndarray:
+    """The image of a delivered camera frame as the pipeline gets it. Rendered (and passed through the
+    faults) only when the detector will read it: a dark frame is black without rendering, and a frame the
+    detector will skip (its QoS rate) gets a blank stand-in it never reads. ``render_all``: render every
+    delivered frame (a frame sink looks at them; a frozen-frame fault may deliver one again later)."""
+    if shot.fate.dark:
+        dark = faults.deliver(shot.fate, np.zeros(renderer.frame_shape, np.uint8))
+        assert dark is not None
+        return dark
+    if not render_all and not pipeline.will_process_image(t_cap):
+        return np.zeros(renderer.frame_shape, np.uint8)
+    img = renderer.render(
+        shot.p_WC, shot.R_WC, (shot.p_WP, shot.yaw), shot.w_WB_B, t_s=t_cap, noise_offset=shot.noise_offset
+    )
+    out = faults.deliver(shot.fate, img)
+    assert out is not None
+    return out
+
+
 def run_mission(
     scenario: Scenario,
     *,
     airframe: Airframe | None = None,
     record: bool = True,
     frame_sink: FrameSink | None = None,
+    render_every_frame: bool = False,
 ) -> MissionRun:
     """Fly one mission of ``scenario`` and return its result (and log when ``record``). ``airframe``
     overrides the scenario's ``airframe:``; the simulator, the wind's drag and the preset's controller
     and planner all read this one. ``frame_sink`` sees every camera frame with its detections (for
-    replays); it must not modify them."""
+    replays); it must not modify them.
+
+    Camera frames are rendered only when the pipeline will look at them: not when lost, not when dark
+    (a blackout), not when the detector skips them (:class:`~alight.perception.FrameGate`); the mission
+    is the same as with every frame rendered (``render_every_frame``, for tests and measurements)."""
     wall0 = time.perf_counter()
     s = scenario
     if airframe is None:
@@ -435,20 +475,27 @@ def run_mission(
             # processing latency; what it shows is fixed at the capture time.
             R_WB = quat_to_rotmat(q_WB)
             if renderer is not None:
+                # A frame is rendered only when it is delivered and then used (module docstring): here
+                # its fate (lost, dark, corrupted) and its sensor noise are drawn, in capture order.
                 p_WC, R_WC = camera_pose_W(p_WB, R_WB, preset.mount)
-                frame: object = renderer.render(p_WC, R_WC, (truth_p[k], float(truths.yaw[k])), w_WB_B, t_s=t)
+                fate = faults.fate(t)
+                shot = _Shot(p_WC, R_WC, truth_p[k], float(truths.yaw[k]), w_WB_B.copy(), fate,
+                             renderer.draw_noise_offset())  # fmt: skip
+                if not fate.dropped:
+                    pending.append((faults.delivery_time(t), t, shot))
             else:
-                frame = truth_perception.observe(t, p_WB, R_WB, truth_p[k])
-            frame = faults.frame(t, frame)  # lost, dark, corrupted, frozen or as captured
-            if frame is not None:
-                pending.append((faults.delivery_time(t), t, frame))
+                frame: object = faults.frame(t, truth_perception.observe(t, p_WB, R_WB, truth_p[k]))
+                if frame is not None:
+                    pending.append((faults.delivery_time(t), t, frame))
             next_capture += perception_period
         while pending and pending[0][0] <= t + 1e-9:
             _, t_cap, frame = pending.popleft()
             if renderer is not None:
-                observations, measurements = pipeline.on_image(t_cap, frame)  # type: ignore[arg-type]
+                render_all = render_every_frame or frame_sink is not None or faults.remembers_frames
+                image = _develop(frame, t_cap, renderer, faults, pipeline, render_all)  # type: ignore[arg-type]
+                observations, measurements = pipeline.on_image(t_cap, image)
                 if frame_sink is not None:
-                    frame_sink(t_cap, frame, observations)  # type: ignore[arg-type]
+                    frame_sink(t_cap, image, observations)
             else:
                 measurements = pipeline.on_observations(t_cap, frame)  # type: ignore[arg-type]
             # A measurement farther from the pad's true centre than the pad's size (at its capture

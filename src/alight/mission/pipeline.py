@@ -23,7 +23,7 @@ from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
-from alight.perception import ModeAware, PixelGated, RangeAware, TiltAware
+from alight.perception import FrameGate, ModeAware, PixelGated, RangeAware, TiltAware
 from alight.perception.geolocation import pad_centre_pixel
 from alight.types import (
     PIPELINE_BLOCKS,
@@ -270,6 +270,13 @@ class Pipeline:
         observations = self.detector.detect(image, t_capture)
         self.stats.charge("detector", t0)
         return observations, self.on_observations(t_capture, observations)
+
+    def will_process_image(self, t_capture: float) -> bool:
+        """Whether :meth:`on_image` on the image captured at ``t_capture``, called next, has the detector
+        read the image: False only for a :class:`~alight.perception.FrameGate` detector that will skip
+        it (then any stand-in image does, and the image need not be made)."""
+        d = self.detector
+        return not isinstance(d, FrameGate) or d.will_process(t_capture)
 
     def _pixel_prediction(self, t_capture: float) -> tuple[FloatArray | None, float | None]:
         if self._predict_pixel is None or not self.platform_estimator.has_measurement:

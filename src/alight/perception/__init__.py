@@ -84,6 +84,19 @@ class TiltAware(Protocol):
 
 
 @runtime_checkable
+class FrameGate(Protocol):
+    """A detector that knows, before an image is made, whether it will look at the image captured at a
+    given time (a detector run at a reduced rate skips frames). A simulator asks it first and renders
+    only the frames it will process; a skipped frame is still handed to ``detect`` (with a stand-in
+    image it never reads), so the detector counts and skips it exactly as before."""
+
+    def will_process(self, t_capture: float) -> bool:
+        """Whether ``detect(image, t_capture)``, called next, reads the image. Must not change the
+        detector's state."""
+        ...
+
+
+@runtime_checkable
 class Geolocator(Protocol):
     """Turns an observation and the ego pose at its capture time into a measurement in W."""
 
@@ -161,6 +174,7 @@ yaw_fold, max_reprojection_px``) and ``direct`` (``mount, sigma_ego_pos_m, sigma
 default_sigma_m``)."""
 
 __all__ = [
+    "FrameGate",
     "GEOLOCATORS",
     "REGISTRY",
     "ArucoPadDetector",

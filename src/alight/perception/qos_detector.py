@@ -208,6 +208,11 @@ class QosDetector:
         decimated to the rate on average and a slower one gives every frame."""
         return self._t_next is None or t >= self._t_next - 1e-6
 
+    def will_process(self, t_capture: float) -> bool:
+        """Whether :meth:`detect` on the frame captured at ``t_capture``, called next, processes it
+        (:class:`~alight.perception.FrameGate`): not when the rate skips it. No state changes."""
+        return not self.throttle or self.due(t_capture)
+
     def _advance(self, t: float) -> None:
         period = 1.0 / self._setting.rate_hz
         if self._t_next is None or t - self._t_next >= period - 1e-6:

@@ -4,14 +4,16 @@ The runner builds one :class:`Faults` from the scenario's ``faults`` section and
 data on their way into the pipeline. Nothing here knows the pipeline's internals: a fault only changes
 (or withholds) what a sensor hands over, exactly as a real failure would. Where each fault acts:
 
-- camera frames (vision presets), after rendering, before the detector: lost frames are not delivered
+- camera frames (vision presets), before the detector: lost frames are not delivered
   (``dropout_prob``: a frame the driver never hands over), a blacked-out camera delivers dark frames
   (``blackouts``: a covered lens or a dead sensor still produces frames, all black), and corrupted frames
   are delivered corrupted (``corruption``: noise bursts, occlusion, exposure spikes, frozen frames,
   stripes). For the ground-truth sensor (no image) dropouts and blackouts stay in
   :class:`~alight.sim.truth_perception.TruthPerception`, as before, and a frozen frame re-delivers the
   previous report with the new capture time; the image corruptions have no meaning without an image and
-  are refused (:meth:`Faults.check_preset`).
+  are refused (:meth:`Faults.check_preset`). The runner draws a camera frame's fate (:meth:`Faults.fate`)
+  when it is captured, before rendering, and renders only a frame that is delivered and not dark
+  (:meth:`Faults.deliver` then corrupts it): a lost or dark frame costs no rendering.
 - detection latency (every preset): each frame reaches the pipeline ``perception.latency_s +
   faults.latency_s`` after capture, plus a uniform jitter of +-``latency_jitter_s``, never before the
   frame captured before it (a detector processes frames one after the other, so results come out in
@@ -52,6 +54,35 @@ Frame = NDArray[np.uint8]
 
 # Child generators of the fault SeedSequence, one per fault (the order fixes the streams).
 _STREAMS = ("drop", "latency", "noise", "occlusion", "exposure", "frozen", "stripes", "range")
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameFate:
+    """What happens to one camera frame (:meth:`Faults.fate`), drawn before the frame is rendered."""
+
+    dropped: bool = False
+    """Lost: never delivered (no need to render it)."""
+    dark: bool = False
+    """In a blackout: delivered all black (no need to render it)."""
+    frozen: bool = False
+    """The previous delivered frame is delivered again."""
+    exposure: bool = False
+    """An exposure spike."""
+    noise_seed: int | None = None
+    """The seed of a noise burst's noise on this frame, or None."""
+    occlusion: tuple[float, float, float, float] | None = None
+    """An occluder's (width, height, x, y) draws, or None."""
+    stripes: tuple[float, float, float, int] | None = None
+    """Stripes' (orientation, width, position draws, garbage seed), or None."""
+
+    @property
+    def needs_image(self) -> bool:
+        """Whether the delivered frame shows the rendered image (not lost, not dark)."""
+        return not (self.dropped or self.dark)
+
+
+_AS_CAPTURED = FrameFate()
+"""The fate of every frame of a mission without frame faults: delivered as captured."""
 
 
 def _in_any(t: float, intervals: list[tuple[float, float]]) -> bool:
@@ -186,20 +217,93 @@ class Faults:
     def frame(self, t: float, frame: object) -> object | None:
         """The frame captured at ``t`` as the camera delivers it: None when it is lost, a dark frame in a
         blackout, corrupted, or the frame itself. ``frame`` is an image (uint8 array) for a camera
-        preset, the ground-truth sensor's observations otherwise. It is never modified in place."""
+        preset, the ground-truth sensor's observations otherwise. It is never modified in place.
+
+        The same as ``deliver(fate(t), frame)``: the runner calls those two instead, so that it renders
+        only the frames that are delivered (and used)."""
         if not self._frames_active:
             return frame
         if not self.camera:
             return self._observations(t, frame)  # type: ignore[arg-type]
-        # One draw per frame and fault, fired or not (see the module docstring).
-        dropped = self._rng["drop"].random() < self._drop_prob
-        img: Frame = frame  # type: ignore[assignment]
-        out = self._corrupted(img)
-        if _in_any(t, self._blackouts):
-            out = np.zeros_like(img)
-        if dropped:
+        return self.deliver(self.fate(t), frame)  # type: ignore[arg-type]
+
+    @property
+    def remembers_frames(self) -> bool:
+        """Whether a delivered frame can come back later (a frozen frame repeats the last delivered
+        one): then every delivered frame has to be rendered and passed to :meth:`deliver`, even one the
+        detector will skip."""
+        return self.camera and self.spec.corruption.frozen.prob > 0
+
+    def fate(self, t: float) -> FrameFate:
+        """Draw what happens to the camera frame captured at ``t``, before it is rendered: the random
+        numbers of :meth:`frame`, drawn in the same order (one draw per frame and fault, fired or not),
+        so a mission is the same whether the frame is then rendered or not. Camera presets only."""
+        if not self._frames_active:
+            return _AS_CAPTURED
+        dropped = bool(self._rng["drop"].random() < self._drop_prob)
+        c = self.spec.corruption
+        rng = self._rng
+        frozen = bool(rng["frozen"].random() < c.frozen.prob)
+        exposure = bool(rng["exposure"].random() < c.exposure.prob)
+        u = rng["noise"].random()
+        if self._noise_left == 0 and u < c.noise.prob:
+            self._noise_left = c.noise.frames
+        noise_seed = int(rng["noise"].integers(2**63))
+        noise = None
+        if self._noise_left > 0:
+            self._noise_left -= 1
+            noise = noise_seed
+        u, fw, fh, cx, cy = rng["occlusion"].random(5)
+        occlusion = (float(fw), float(fh), float(cx), float(cy)) if u < c.occlusion.prob else None
+        u, rows, width, pos = rng["stripes"].random(4)
+        stripe_seed = int(rng["stripes"].integers(2**63))
+        stripes = (float(rows), float(width), float(pos), stripe_seed) if u < c.stripes.prob else None
+        return FrameFate(dropped, _in_any(t, self._blackouts), frozen, exposure, noise, occlusion, stripes)
+
+    def deliver(self, fate: FrameFate, img: Frame | None) -> Frame | None:
+        """The frame as the camera delivers it, given its :meth:`fate`: None when it is lost, a dark frame
+        in a blackout, else ``img`` corrupted. ``img`` may be None when the fate is ``dropped``, and
+        any image of the frame's shape when it is ``dark`` (neither needs rendering). Frames must
+        be delivered in the order their fates were drawn (a frozen frame repeats the last delivered)."""
+        if fate is _AS_CAPTURED:
+            return img
+        if fate.dropped:
             return None
+        if img is None:
+            raise ValueError("a delivered frame needs an image (any image of the frame's shape when dark)")
+        out: Frame = np.zeros_like(img) if fate.dark else self._corrupted(fate, img)
         self._last_frame = out
+        return out
+
+    def _corrupted(self, f: FrameFate, img: Frame) -> Frame:
+        c = self.spec.corruption
+        out = img
+        # frozen: the driver hands over its previous buffer again (with the new time stamp)
+        if f.frozen and isinstance(self._last_frame, np.ndarray):
+            out = self._last_frame.copy()
+        if f.exposure:
+            out = np.clip(out.astype(np.float32) * c.exposure.gain, 0, 255).astype(np.uint8)
+        if f.noise_seed is not None:
+            n = np.random.default_rng(f.noise_seed).standard_normal(out.shape, dtype=np.float32)
+            out = np.clip(out.astype(np.float32) + c.noise.sigma_dn * n, 0, 255).astype(np.uint8)
+        if f.occlusion is not None:
+            fw, fh, cx, cy = f.occlusion
+            H, W = out.shape[0], out.shape[1]
+            w = max(1, int(round(W * c.occlusion.size_fraction * (0.5 + 0.5 * fw))))
+            h = max(1, int(round(H * c.occlusion.size_fraction * (0.5 + 0.5 * fh))))
+            x0, y0 = int(cx * (W - w)), int(cy * (H - h))
+            out = out.copy() if out is img else out
+            out[y0 : y0 + h, x0 : x0 + w] = c.occlusion.value_dn
+        if f.stripes is not None:
+            rows, width, pos, stripe_seed = f.stripes
+            out = out.copy() if out is img else out
+            axis = 0 if rows < 0.5 else 1
+            n = out.shape[axis]
+            lines = min(n, 1 + int(width * c.stripes.max_lines))
+            a = int(pos * (n - lines + 1))
+            band = (slice(a, a + lines),) if axis == 0 else (slice(None), slice(a, a + lines))
+            garbage = np.random.default_rng(stripe_seed).integers(0, 256, out[band].shape, dtype=np.uint8)
+            out[band] = garbage
         return out
 
     def _observations(self, t: float, obs: list[Observation]) -> list[Observation]:
@@ -209,42 +313,4 @@ class Faults:
         else:
             out = obs
         self._last_frame = out
-        return out
-
-    def _corrupted(self, img: Frame) -> Frame:
-        c = self.spec.corruption
-        rng = self._rng
-        out = img
-        # frozen: the driver hands over its previous buffer again (with the new time stamp)
-        if rng["frozen"].random() < c.frozen.prob and isinstance(self._last_frame, np.ndarray):
-            out = self._last_frame.copy()
-        if rng["exposure"].random() < c.exposure.prob:
-            out = np.clip(out.astype(np.float32) * c.exposure.gain, 0, 255).astype(np.uint8)
-        u = rng["noise"].random()
-        if self._noise_left == 0 and u < c.noise.prob:
-            self._noise_left = c.noise.frames
-        noise_seed = int(rng["noise"].integers(2**63))
-        if self._noise_left > 0:
-            self._noise_left -= 1
-            n = np.random.default_rng(noise_seed).standard_normal(out.shape, dtype=np.float32)
-            out = np.clip(out.astype(np.float32) + c.noise.sigma_dn * n, 0, 255).astype(np.uint8)
-        u, fw, fh, cx, cy = rng["occlusion"].random(5)
-        if u < c.occlusion.prob:
-            H, W = out.shape[0], out.shape[1]
-            w = max(1, int(round(W * c.occlusion.size_fraction * (0.5 + 0.5 * fw))))
-            h = max(1, int(round(H * c.occlusion.size_fraction * (0.5 + 0.5 * fh))))
-            x0, y0 = int(cx * (W - w)), int(cy * (H - h))
-            out = out.copy() if out is img else out
-            out[y0 : y0 + h, x0 : x0 + w] = c.occlusion.value_dn
-        u, rows, width, pos = rng["stripes"].random(4)
-        stripe_seed = int(rng["stripes"].integers(2**63))
-        if u < c.stripes.prob:
-            out = out.copy() if out is img else out
-            axis = 0 if rows < 0.5 else 1
-            n = out.shape[axis]
-            lines = min(n, 1 + int(width * c.stripes.max_lines))
-            a = int(pos * (n - lines + 1))
-            band = (slice(a, a + lines),) if axis == 0 else (slice(None), slice(a, a + lines))
-            garbage = np.random.default_rng(stripe_seed).integers(0, 256, out[band].shape, dtype=np.uint8)
-            out[band] = garbage
         return out

@@ -695,6 +695,7 @@ class Renderer:
         w_WB_B: FloatArray | None = None,
         *,
         t_s: float | None = None,
+        noise_offset: tuple[int, int] | None = None,
     ) -> NDArray[np.uint8]:
         """The camera image, uint8, shape (height, width) (grey) or (height, width, 3) (BGR, with
         ``RenderOptions.color``), a new array on every call.
@@ -702,7 +703,9 @@ class Renderer:
         ``p_WC`` (3,) camera centre in W (m); ``R_WC`` (3, 3) camera orientation; ``platform_pose`` =
         ``(p_WP (3,), yaw)``, the pad centre in W (m, its z is the deck height) and the platform heading
         (rad); ``w_WB_B`` (3,) body rates (rad/s) for the motion blur (ignored when the exposure time is 0);
-        ``t_s`` the capture time (s) for the brightness drift (ignored when there is none).
+        ``t_s`` the capture time (s) for the brightness drift (ignored when there is none);
+        ``noise_offset`` the frame's window into the sensor-noise bank from :meth:`draw_noise_offset`
+        (default: drawn now).
         """
         p_WC = np.asarray(p_WC, dtype=np.float64)
         R_WC = np.asarray(R_WC, dtype=np.float64)
@@ -742,7 +745,22 @@ class Renderer:
             self._draw_ground(p_WC, R_WC, out)
             if deck is not None:
                 self._composite_deck(out, deck[0], deck[1])
-        return self._effects(out, w_WB_B)
+        return self._effects(out, w_WB_B, noise_offset)
+
+    @property
+    def frame_shape(self) -> tuple[int, ...]:
+        """The shape of a rendered frame: (height, width), or (height, width, 3) in colour."""
+        return (self.height, self.width, *self._chan)
+
+    def draw_noise_offset(self) -> tuple[int, int] | None:
+        """Draw the sensor noise of one frame (its window into the noise bank) from the renderer's
+        generator, the draw :meth:`render` makes when it is not given one; None without noise. A caller
+        that renders only some frames draws this for every frame, in capture order, so a frame not
+        rendered does not shift the noise of the later ones."""
+        if self._noise_pos is None or self._rng is None:
+            return None
+        oy, ox = (int(a) for a in self._rng.integers(0, (self.height, self.width)))
+        return oy, ox
 
     # ------------------------------------------------------------------------------------------------
 
@@ -872,7 +890,9 @@ class Renderer:
             cv2.cvtColor(b.tmp4[: nr * nc * 4].reshape(nr, nc, 4), cv2.COLOR_BGRA2BGR, dst=tmp)
         cv2.copyTo(tmp, b.mask[: nr * nc].reshape(nr, nc), out[v0:v1, u0:u1])  # in place into the view
 
-    def _effects(self, image: NDArray[np.uint8], w_WB_B: FloatArray | None) -> NDArray[np.uint8]:
+    def _effects(
+        self, image: NDArray[np.uint8], w_WB_B: FloatArray | None, noise_offset: tuple[int, int] | None = None
+    ) -> NDArray[np.uint8]:
         opt = self.options
         img: NDArray[Any] = image  # stays uint8; OpenCV's stubs return MatLike, without the dtype
         if self._vignette is not None:
@@ -884,9 +904,10 @@ class Renderer:
                 img = cv2.filter2D(img, -1, k, borderType=cv2.BORDER_REPLICATE)
         if not self._lut_identity:
             img = cv2.LUT(img, self._lut)
-        if self._noise_pos is not None and self._noise_neg is not None and self._rng is not None:
+        off = noise_offset if noise_offset is not None else self.draw_noise_offset()
+        if self._noise_pos is not None and self._noise_neg is not None and off is not None:
             H, W = self.height, self.width
-            oy, ox = (int(a) for a in self._rng.integers(0, (H, W)))
+            oy, ox = off
             cv2.add(img, self._noise_pos[oy : oy + H, ox : ox + W], dst=img)
             cv2.subtract(img, self._noise_neg[oy : oy + H, ox : ox + W], dst=img)
         if self._valid is not None:
