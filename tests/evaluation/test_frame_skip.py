@@ -9,10 +9,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from alight.energy.qos import QosDetector
 from alight.evaluation.runner import MissionRun, run_mission
 from alight.mission.pipeline import Pipeline
 from alight.perception import FrameGate
+from alight.perception.qos_detector import QosDetector
 from alight.scenario import scenario_from_dict
 from alight.sim.render import Renderer
 
