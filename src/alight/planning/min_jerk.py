@@ -624,7 +624,8 @@ class CandidateBatch(NamedTuple):
     @property
     def feasible(self) -> NDArray[np.bool_]:
         """(N,) bool: input test FEASIBLE and floor test passed (INDETERMINABLE counts as infeasible)."""
-        ok: NDArray[np.bool_] = (self.codes == InputFeasibility.FEASIBLE) & self.floor_ok  # ndarray == is typed Any
+        # a typed local: numpy types ndarray == Any
+        ok: NDArray[np.bool_] = (self.codes == InputFeasibility.FEASIBLE) & self.floor_ok
         return ok
 
 
