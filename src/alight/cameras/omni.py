@@ -48,6 +48,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numba
 import numpy as np
@@ -334,7 +335,7 @@ class OmniCamera:
         contains the circle; as for :class:`PinholeCamera`, but can exceed pi."""
         W, H = self.width, self.height
         edges = np.array([[-0.5, self.xc], [W - 0.5, self.xc], [self.yc, -0.5], [self.yc, H - 0.5]])
-        rho = np.minimum(self.ideal_radius(edges), self.rho_max)  # type: ignore[type-var]
+        rho = np.minimum(self.ideal_radius(edges), self.rho_max)  # type: ignore[arg-type]  # float once built
         a = [self.off_axis_angle(float(r)) for r in rho]
         return a[0] + a[1], a[2] + a[3]
 
@@ -410,7 +411,8 @@ def fit_invpol(
         best = min(best, err)
         if err < tol_px:
             coef.setflags(write=False)
-            return coef
+            # float64, fitted to float64 samples: numpy's stubs type a Polynomial's coef inexact or object
+            return cast(FloatArray, coef)
     raise ValueError(
         f"no inverse polynomial with <= {max_terms} terms within {tol_px} px over rho <= {rho_max:.1f} px "
         f"(best {best:.3g} px): is the elevation nearly flat there? (use a smaller rho_max)"
@@ -441,7 +443,7 @@ def solve_rho(
         raise ValueError(f"ss must hold at least 2 finite coefficients, got {ss}")
     prev = math.nan if rho_prev is None else float(rho_prev)
     if np.ndim(K) == 0:
-        return float(solve_rho_jit(ss, float(K), prev, float(rho_max)))  # type: ignore[arg-type]
+        return float(solve_rho_jit(ss, float(K), prev, float(rho_max)))
     Ka = np.asarray(K, dtype=np.float64)
     out = np.array([solve_rho_jit(ss, float(k), prev, float(rho_max)) for k in Ka.ravel()])
     return out.reshape(Ka.shape)

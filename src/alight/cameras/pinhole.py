@@ -100,10 +100,9 @@ class PinholeCamera:
             raise InputError(f"{p}: camera calibration file not found")
         ros = _ros_camera_info(p)
         if ros is not None:
-            K, dist, w, h = ros
-            w, h = width or w, height or h
+            K_ros, dist_ros, w_ros, h_ros = ros
             try:
-                return cls(w, h, K, dist)
+                return cls(width or w_ros, height or h_ros, K_ros, dist_ros)
             except ValueError as e:
                 raise InputError(f"{p}: {e}") from None
         try:

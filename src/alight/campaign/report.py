@@ -322,11 +322,12 @@ def param_axis(name: str, values: Iterable[str]) -> Axis:
     blank = [v for v in distinct if v == ""]
     rest = [v for v in distinct if v != ""]
     nums = [_float(v)[0] for v in rest]
+    known = [x for x in nums if x is not None]
     labels: list[str] = [_MISSING] if blank else []
     index: dict[str, int] = {"": 0} if blank else {}
     off = len(labels)
-    if rest and all(x is not None for x in nums):
-        order = sorted(zip(nums, rest, strict=True))
+    if rest and len(known) == len(nums):
+        order = sorted(zip(known, rest, strict=True))
         if len(order) <= MAX_LEVELS:
             for k, (_, v) in enumerate(order):
                 labels.append(v)
@@ -876,7 +877,7 @@ def _maps_section(res: Results) -> list[str]:
             for m in by_preset[p]:
                 per_level[axis.index[m.params.get(axis.name, "")]].append(m)
             series.append((p, [group_stats(ms) if ms else None for ms in per_level]))
-        fig = plot_success_bars(axis.labels, series, axis.name)  # type: ignore[arg-type]
+        fig = plot_success_bars(axis.labels, series, axis.name)
         note = f"; aggregated over {', '.join(_esc(o) for o in others)}" if others else ""
         out.append(
             f'<p class="muted">Success rate with Wilson 95% intervals per value of {_esc(axis.name)}'
@@ -958,9 +959,9 @@ def _failures_section(res: Results, out_dir: Path) -> list[str]:
 def _detail_section(res: Results, groups: list[dict[str, Any]]) -> list[str]:
     conds: dict[str, dict[str, str]] = {}
     cell: dict[tuple[str, str], dict[str, Any]] = {}
-    for g in groups:
-        conds.setdefault(g["condition_id"], g["params"])
-        cell[(g["condition_id"], g["preset"])] = g
+    for group in groups:
+        conds.setdefault(group["condition_id"], group["params"])
+        cell[(group["condition_id"], group["preset"])] = group
     params = "".join(f"<th>{_esc(p)}</th>" for p in res.swept)
     heads = "".join(f'<th colspan="2">{_esc(p)}</th>' for p in res.presets)
     sub = "".join("<th>success [95% CI]</th><th>TD p50 / p90</th>" for _ in res.presets)

@@ -433,21 +433,34 @@ def expand_campaign(
     # keep the seeds are left out (the condition's own index when there are none).
     seed_index: dict[tuple[tuple[str, str], ...], int] = {}
     missions: list[PlannedMission] = []
-    for cond, tree in zip(conditions, trees, strict=True):
-        key = tuple((p, repr(v)) for p, v in sorted(cond.params.items()) if p not in spec.same_seeds_across)
-        branch = seed_index.setdefault(key, len(seed_index)) if spec.same_seeds_across else cond.index
+    for condition, tree in zip(conditions, trees, strict=True):
+        seed_key = tuple(
+            (p, repr(v)) for p, v in sorted(condition.params.items()) if p not in spec.same_seeds_across
+        )
+        branch = (
+            seed_index.setdefault(seed_key, len(seed_index)) if spec.same_seeds_across else condition.index
+        )
         for r in range(spec.seeds_per_condition):
             if len(missions) >= wanted:
                 break  # the limit is reached: the rest is never expanded
             seed = mission_seed(spec.seed, branch, r)
             for preset in presets:
-                mid = mission_id(cond.condition_id, preset, r)
+                mid = mission_id(condition.condition_id, preset, r)
                 scenario = _grouped(tree, *groups[preset])
                 scenario["seed"] = seed
                 if "name" not in paths:
                     scenario["name"] = f"{spec.name} {mid}"
                 missions.append(
-                    PlannedMission(mid, cond.condition_id, cond.index, preset, r, seed, cond.params, scenario)
+                    PlannedMission(
+                        mid,
+                        condition.condition_id,
+                        condition.index,
+                        preset,
+                        r,
+                        seed,
+                        condition.params,
+                        scenario,
+                    )
                 )
     return conditions, missions[:wanted], paths, presets
 

@@ -127,7 +127,12 @@ def compute_per_simulated_s(
     for times, sim_s, wall_s in missions:
         values = [times.get(b) for b in PIPELINE_BLOCKS]
         clocks = [sim_s, wall_s, *values]
-        if any(v is None or not math.isfinite(v) for v in clocks) or sim_s <= 0:  # type: ignore[operator]
+        if (
+            sim_s is None
+            or wall_s is None
+            or any(v is None or not math.isfinite(v) for v in clocks)
+            or sim_s <= 0
+        ):
             continue  # missing, or a damaged cell (NaN, inf): this mission says nothing about compute
         for b, v in zip(PIPELINE_BLOCKS, values, strict=True):
             blocks[b] += float(v)  # type: ignore[arg-type]

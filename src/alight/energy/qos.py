@@ -523,7 +523,7 @@ class QosEnergyModel:
             if util_dropped:
                 why += f"; {util_dropped} setting(s) within budget were left out as slower than real time"
             return BudgetChoice(None, None, why)
-        i = max(np.flatnonzero(ok), key=lambda j: cands[j].rank)
+        i = int(max(np.flatnonzero(ok), key=lambda j: cands[j].rank))
         why = (
             f"highest quality ({cands[i].quality:.3g}) of {int(ok.sum())}/{len(cands)} settings within "
             f"{budget_J:.4g} J over {duration_s:g} s"

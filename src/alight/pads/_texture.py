@@ -48,7 +48,9 @@ def box_overlap_weights(n_px: int, edges_px: NDArray[np.float64]) -> NDArray[np.
     lo = np.arange(n_px, dtype=np.float64)[:, None]
     a = edges_px[None, :-1]
     b = edges_px[None, 1:]
-    return np.clip(np.minimum(lo + 1, b) - np.maximum(lo, a), 0.0, None)
+    # a typed local: numpy types np.minimum/np.maximum of these operands Any
+    w: NDArray[np.float64] = np.clip(np.minimum(lo + 1, b) - np.maximum(lo, a), 0.0, None)
+    return w
 
 
 def marker_square_corners_P(cx: float, cy: float, a: float) -> FloatArray:

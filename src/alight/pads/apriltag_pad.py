@@ -117,7 +117,7 @@ class AprilTagPad:
         px_per_m)``. Each marker's cells are painted with exact area coverage (a box filter), so a cell
         edge between pixels gives the proportional grey and the marker corners stay where P says."""
         n = texture_side_px(self.size_m, px_per_m)
-        img = np.full((n, n), 255.0)
+        img = np.full((n, n), 255.0, dtype=np.float64)
         dictionary = cv2.aruco.getPredefinedDictionary(APRILTAG_DICTIONARY)
         for mid in self.marker_ids:
             paint_marker(

@@ -177,11 +177,11 @@ class SduPad:
         land where P says to a small fraction of a pixel."""
         n = texture_side_px(self.size_m, px_per_m)
         s = n / self.size_m
-        img = np.full((n, n), 255.0)
+        img = np.full((n, n), 255.0, dtype=np.float64)
         # the n-fold disc's bounding box (pixel i spans [i, i+1) from the texture edge), one pixel wider
         lo = max(0, int(math.floor(s * (self.size_m / 2 - self.nfold_radius_m))) - 1)
         hi = min(n, int(math.ceil(s * (self.size_m / 2 + self.nfold_radius_m))) + 1)
-        idx = (np.arange(lo, hi) + 0.5) / s
+        idx = (np.arange(lo, hi, dtype=np.float64) + 0.5) / s
         x = (self.size_m / 2 - idx)[:, None]  # row v -> x
         y = (self.size_m / 2 - idx)[None, :]  # column u -> y
         img[lo:hi, lo:hi] -= 255.0 * self._nfold_coverage(x, y, s)

@@ -79,9 +79,10 @@ on a uniform frame), so pair this detector with a colour camera (:attr:`RedTarge
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -139,7 +140,8 @@ def binary_image_of_color(
     """Alg. 1 (``getBinaryImageofColor``): 255 where ``I1 >= K_I (I2 + I3) + C_I``, else 0. ``I1..I3``
     are single-channel uint8 images of one shape; ``table`` is :func:`alg1_table` ``(K_I, C_I)``."""
     s = cv2.add(I2, I3, dtype=cv2.CV_16U)
-    return cv2.compare(s, cv2.LUT(I1, table), cv2.CMP_LT)
+    # a comparison is uint8 (0/255) whatever its operands: OpenCV's stubs type every result MatLike
+    return cast(NDArray[np.uint8], cv2.compare(s, cv2.LUT(I1, table), cv2.CMP_LT))
 
 
 def color_filter(
@@ -154,7 +156,9 @@ def color_filter(
     255 on the "most reddish" pixels. ``tables`` = ``(alg1_table(K_I, C_I), temp_table(green_ratio))``
     precomputed (then ``K_I``, ``C_I``, ``green_ratio`` are ignored)."""
     T1, T2 = tables if tables is not None else (alg1_table(K_I, C_I), temp_table(green_ratio))
-    B, G, R = cv2.split(image_bgr)
+    # the planes of a uint8 image are uint8 (and so are the comparisons and saturating differences below):
+    # OpenCV's stubs type every result MatLike
+    B, G, R = cast(Sequence[NDArray[np.uint8]], cv2.split(image_bgr))
     I_RR = binary_image_of_color(R, G, B, T1)
     I_GG = binary_image_of_color(G, B, R, T1)
     I_BB = binary_image_of_color(B, R, G, T1)
@@ -163,7 +167,7 @@ def color_filter(
     out = cv2.subtract(I_RR, I_GG)
     cv2.subtract(out, I_BB, dst=out)
     cv2.subtract(out, I_Temp, dst=out)
-    return out
+    return cast(NDArray[np.uint8], out)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -369,7 +373,8 @@ class RedTargetDetector:
             return None
         m = color_filter(img, tables=self._tables)
         if self._kernel is not None:
-            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, self._kernel)
+            # uint8 like its input: OpenCV's stubs type it MatLike
+            m = cast(NDArray[np.uint8], cv2.morphologyEx(m, cv2.MORPH_OPEN, self._kernel))
         return m
 
     def candidates(self, image: Any) -> list[Blob]:
@@ -386,7 +391,7 @@ class RedTargetDetector:
         for cnt in contours:
             if cv2.contourArea(cnt) < max(min_area, 1e-9):
                 continue
-            b = blob_measures(cnt)
+            b = blob_measures(cast(NDArray[np.int32], cnt))  # findContours' points are int32; stubs: MatLike
             if b is not None:
                 out.append(b)
         out.sort(key=lambda b: -b.area_px)

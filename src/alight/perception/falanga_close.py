@@ -172,7 +172,7 @@ def _verification_samples(tag: FalangaTag) -> tuple[FloatArray, NDArray[np.bool_
 
 
 @numba.njit(cache=True)
-def _dark_runs(img, min_contrast, dark_frac):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _dark_runs(img, min_contrast, dark_frac):  # pragma: no cover - numba
     """Step 1-2: threshold at the midpoint of the 2nd and 98th percentiles and 8-connected labelling of
     the dark runs (union-find over runs, :mod:`alight.numerics.runs`; a ground texture makes thousands of
     specks, which OpenCV's labelling with statistics takes ~1 ms for at 376x240).
@@ -243,7 +243,7 @@ def _dark_runs(img, min_contrast, dark_frac):  # type: ignore[no-untyped-def]  #
 
 
 @numba.njit(cache=True)
-def _paint_bbox(row, x0, x1, root, r):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _paint_bbox(row, x0, x1, root, r):  # pragma: no cover - numba
     """Mask (uint8, 0/1) of the component rooted at run r on its bounding box plus a 1-px frame of 0, and
     the box's top-left ``(ox, oy)`` in the image minus 1."""
     ymin = 1 << 30
@@ -264,7 +264,7 @@ def _paint_bbox(row, x0, x1, root, r):  # type: ignore[no-untyped-def]  # pragma
 
 
 @numba.njit(cache=True)
-def _merge_short_edges(P, B, min_edge):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _merge_short_edges(P, B, min_edge):  # pragma: no cover - numba
     """Polygon (n, 2) with border flags (n,) -> the polygon where every run of vertices joined by edges
     shorter than ``min_edge``, all turning the same way and all on or all off the border, is one vertex,
     at the intersection of the long edges on either side (a corner that the downscale and threshold
@@ -280,7 +280,7 @@ def _merge_short_edges(P, B, min_edge):  # type: ignore[no-untyped-def]  # pragm
         c = P[(i + 1) % n]
         S[i] = (P[i, 0] - a[0]) * (c[1] - P[i, 1]) - (P[i, 1] - a[1]) * (c[0] - P[i, 0]) > 0
 
-    def joined(i, j):  # type: ignore[no-untyped-def]
+    def joined(i, j):
         return math.hypot(P[j, 0] - P[i, 0], P[j, 1] - P[i, 1]) < min_edge and S[i] == S[j] and B[i] == B[j]
 
     start = -1
@@ -337,7 +337,7 @@ def _merge_short_edges(P, B, min_edge):  # type: ignore[no-untyped-def]  # pragm
 
 
 @numba.njit(cache=True)
-def _cross_corners(poly, ws, hs, min_edge, cos_lo, cos_hi):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _cross_corners(poly, ws, hs, min_edge, cos_lo, cos_hi):  # pragma: no cover - numba
     """Steps 3-5 on a component's simplified outline ``poly`` (n, 2) in downscaled pixels of an image of
     ``ws x hs``: the cross's inner corners and the outer corners in view, labelled.
 
@@ -457,7 +457,7 @@ def _cross_corners(poly, ws, hs, min_edge, cos_lo, cos_hi):  # type: ignore[no-u
 
 
 @numba.njit(cache=True)
-def _prepare(inner_s, outer_s, has_outer, f, w_img, h_img, min_bar_px):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _prepare(inner_s, outer_s, has_outer, f, w_img, h_img, min_bar_px):  # pragma: no cover - numba
     """Full-resolution start points for step 6 from the labelled corners in downscaled pixels.
 
     Returns ``(ok, start (k, 1, 2) float32, idx (k,), win, bar_px)``: ``idx`` 0-3 are the inner corners,
@@ -525,7 +525,9 @@ def _prepare(inner_s, outer_s, has_outer, f, w_img, h_img, min_bar_px):  # type:
 
 
 @numba.njit(cache=True)
-def _verify(gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c, max_ratio, min_frac):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _verify(  # pragma: no cover - numba
+    gray, start, ref, idx, P_xy, win, f, bar_px, samp_xy, samp_w, min_c, max_ratio, min_frac
+):
     """Steps 6 (acceptance of the refined corners) and 7 (homography and pattern).
 
     ``start``/``ref`` (k, 1, 2): corners before and after ``cv2.cornerSubPix``; ``idx`` (k,): which corner

@@ -186,7 +186,7 @@ constant, so that numba compiles the tile arithmetic to shifts."""
 
 
 @numba.njit(cache=True)
-def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # pragma: no cover - numba
     """Adaptive threshold and 8-connected labelling of the white runs.
 
     White: ``img > mean(window) + offset``, the window being (2 radius_tiles + 1)^2 tiles of
@@ -306,7 +306,7 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # t
 
 
 @numba.njit(cache=True)
-def _solidity(row, x0, x1, root, cands, by0, by1):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _solidity(row, x0, x1, root, cands, by0, by1):  # pragma: no cover - numba
     """Shape scores of candidate components (root run indices), from their row extents (leftmost and
     rightmost pixel of each row), which are the same for a filled quadrangle and for the hollow band the
     threshold leaves along the border of a large one:
@@ -402,12 +402,12 @@ def _solidity(row, x0, x1, root, cands, by0, by1):  # type: ignore[no-untyped-de
 
 
 @numba.njit(cache=True)
-def _tri2(x, y, i, j, k):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _tri2(x, y, i, j, k):  # pragma: no cover - numba
     return abs((x[j] - x[i]) * (y[k] - y[i]) - (y[j] - y[i]) * (x[k] - x[i]))
 
 
 @numba.njit(cache=True)
-def _max_quad(x_in, y_in):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _max_quad(x_in, y_in):  # pragma: no cover - numba
     """The largest quadrangle with its corners on the vertices of a convex polygon (vertices in order):
     for each diagonal (i, k) the farthest vertex on either side, with pointers that only move forward,
     O(h^2). Polygons with more than 48 vertices are decimated first (the area is then a slight
@@ -448,7 +448,7 @@ def _max_quad(x_in, y_in):  # type: ignore[no-untyped-def]  # pragma: no cover -
 
 
 @numba.njit(cache=True)
-def _paint(row, x0, x1, root, r, oy, ox, hh, ww):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _paint(row, x0, x1, root, r, oy, ox, hh, ww):  # pragma: no cover - numba
     """Mask (hh, ww) of the component ``r``, offset by (oy, ox)."""
     m = np.zeros((hh, ww), np.uint8)
     for k in range(row.shape[0]):
@@ -465,7 +465,7 @@ def _paint(row, x0, x1, root, r, oy, ox, hh, ww):  # type: ignore[no-untyped-def
 
 
 @numba.njit(cache=True)
-def _edge1(img, x, y, dx, dy, L, pol, min_step):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _edge1(img, x, y, dx, dy, L, pol, min_step):  # pragma: no cover - numba
     """Strongest step edge of polarity ``pol`` (+1: brightness increasing along (dx, dy), -1 decreasing)
     on the segment ``(x, y) + s (dx, dy)``, ``|s| <= L`` (px).
 
@@ -530,7 +530,7 @@ def _edge1(img, x, y, dx, dy, L, pol, min_step):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True)
-def _fit_line(px, py, n):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _fit_line(px, py, n):  # pragma: no cover - numba
     """Total-least-squares line through the first n points, refitted once without the points farther
     than max(0.75 px, 2.5 robust sigmas). Returns (ok, cx, cy, dx, dy)."""
     keep = np.ones(n, np.bool_)
@@ -571,7 +571,7 @@ def _fit_line(px, py, n):  # type: ignore[no-untyped-def]  # pragma: no cover - 
 
 
 @numba.njit(cache=True)
-def _refine_quad(img, q, half, min_step):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _refine_quad(img, q, half, min_step):  # pragma: no cover - numba
     """Corners (4, 2) refined at full resolution: along each side, the white-pad-to-ground step is
     searched on the outward normal at up to 16 places, a line is fitted per side and adjacent lines are
     intersected (a side without enough edge points keeps its coarse line). Returns (corners, number of
@@ -638,7 +638,7 @@ def _refine_quad(img, q, half, min_step):  # type: ignore[no-untyped-def]  # pra
 
 
 @numba.njit(cache=True)
-def _pattern_corr(img, H, pat_xy, label):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _pattern_corr(img, H, pat_xy, label):  # pragma: no cover - numba
     """Pearson correlation between the image sampled at the pattern points mapped by H and their labels
     (1 white, 0 black), the white-minus-black mean difference, and the fraction of points inside the
     image. (corr, contrast, frac_in)."""
@@ -678,7 +678,7 @@ def _pattern_corr(img, H, pat_xy, label):  # type: ignore[no-untyped-def]  # pra
 
 
 @numba.njit(cache=True)
-def _ring_edges(img, H, ring_xy, ring_out, ring_in, pol, half, min_step):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _ring_edges(img, H, ring_xy, ring_out, ring_in, pol, half, min_step):  # pragma: no cover
     """Ring edge points: for each model point, the step of polarity ``pol`` searched along the image of
     the pad's radial line through it (the line through the images of the points just inside and just
     outside the edge). Returns (points (N, 2), ok (N,))."""
@@ -703,7 +703,7 @@ def _ring_edges(img, H, ring_xy, ring_out, ring_in, pol, half, min_step):  # typ
 
 
 @numba.njit(cache=True)
-def _ransac_subset(src, dst, ok, thr, max_iters, n_need):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _ransac_subset(src, dst, ok, thr, max_iters, n_need):  # pragma: no cover
     """RANSAC homography over the pairs with ``ok``; (good, H, inlier mask over all pairs, inlier
     count). ``good`` needs at least ``n_need`` valid pairs and as many inliers."""
     n = src.shape[0]
@@ -728,7 +728,7 @@ def _ransac_subset(src, dst, ok, thr, max_iters, n_need):  # type: ignore[no-unt
 
 
 @numba.njit(cache=True)
-def _quad_stage(img, q_small, f, quad_xy, half, min_step):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _quad_stage(img, q_small, f, quad_xy, half, min_step):  # pragma: no cover
     """A candidate quad (downscaled pixels) to full resolution, labelled like the model (negative
     shoelace area in (u, v), the (+x, +y) corner first = the one nearest the image's top-left), refined
     (:func:`_refine_quad`), and its homography from the pad plane. Returns (ok, corners (4, 2), sides
@@ -762,7 +762,7 @@ def _quad_stage(img, q_small, f, quad_xy, half, min_step):  # type: ignore[no-un
 
 
 @numba.njit(cache=True)
-def _quad_shape_ok(q):  # type: ignore[no-untyped-def]  # pragma: no cover - numba
+def _quad_shape_ok(q):  # pragma: no cover - numba
     """No side shorter than a fifth of the longest and every corner angle in [32, 148] deg."""
     smin = np.inf
     smax = 0.0
@@ -806,7 +806,8 @@ def _pattern_samples(tag: FalangaTag) -> tuple[FloatArray, FloatArray]:
             np.stack([np.zeros_like(t), t], axis=1),
         ]
     )
-    x, y = p[:, 0], p[:, 1]
+    x: FloatArray = p[:, 0]
+    y: FloatArray = p[:, 1]
     sd_ring = np.abs(np.hypot(x, y) - r_mid) - tag.ring_width_m / 2
     L, h = tag.cross_arm_half_length_m, tag.cross_bar_width_m / 2
 

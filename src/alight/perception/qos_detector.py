@@ -15,9 +15,10 @@ from typing import Any
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from alight.energy.qos import PhasePolicy, QosEnergyModel, QosSetting
-from alight.perception.falanga_tag import as_gray_u8
+from alight.perception.image_input import as_gray_u8
 from alight.perception.nfold import NFoldDetector
 from alight.types import FloatArray, Mode, Observation
 
@@ -47,7 +48,8 @@ class ScaledCamera:
 
     def project(self, points_C: FloatArray) -> FloatArray:
         px = np.asarray(self.camera.project(points_C), dtype=np.float64)
-        return (px + 0.5) * np.array([self.sx, self.sy]) - 0.5
+        out: FloatArray = (px + 0.5) * np.array([self.sx, self.sy]) - 0.5
+        return out
 
     def unproject(self, pixels: FloatArray) -> FloatArray:
         full = (np.asarray(pixels, dtype=np.float64) + 0.5) / np.array([self.sx, self.sy]) - 0.5
@@ -241,6 +243,8 @@ class QosDetector:
         if gray is None:
             return []
         H, W = gray.shape
+        # NDArray[Any]: OpenCV's stubs type cv2.resize as returning Mat | ndarray of any numeric dtype.
+        small: NDArray[Any]
         if s.image_scale == 1.0:
             small = gray
         else:

@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike, NDArray
 
 from alight.numerics.poly import positive_real_roots_into, quadratic_roots
 from alight.types import GRAVITY_MPS2, FloatArray
@@ -413,7 +414,7 @@ def _sample_one(c, t0, T, t):  # pragma: no cover
 # --------------------------------------------------------------------------------------------------
 
 
-def _states(x: object, name: str, n: int | None = None) -> FloatArray:
+def _states(x: ArrayLike, name: str, n: int | None = None) -> FloatArray:
     """A (3,) or (M, 3) state as a C-contiguous (M, 3) float64 array (M = 1 or n)."""
     a = np.ascontiguousarray(x, dtype=np.float64)
     if a.ndim == 1:
@@ -441,7 +442,14 @@ def _coeffs(x: object, name: str, n: int) -> FloatArray:
 
 
 def _boundary_arrays(
-    p0: object, v0: object, a0: object, T: object, pf: object, vf: object, af: object, mode: EndConstraint
+    p0: ArrayLike,
+    v0: ArrayLike,
+    a0: ArrayLike,
+    T: object,
+    pf: ArrayLike,
+    vf: ArrayLike | None,
+    af: ArrayLike | None,
+    mode: EndConstraint,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Validated durations (N,) and start/end states as the kernels take them (see the callers)."""
     t = _durations(T)
@@ -511,7 +519,7 @@ def input_feasibility(
     f_max: float,
     w_max: float,
     min_section_s: float,
-) -> FloatArray:
+) -> NDArray[np.int64]:
     """The recursive input-feasibility test of each primitive (codes of :class:`InputFeasibility`, (N,)).
 
     Args:
@@ -550,7 +558,7 @@ def _check_limits(f_min: float, f_max: float, w_max: float, min_section_s: float
         raise ValueError(f"min_section_s must be > 0, got {min_section_s}")
 
 
-def _plane(point: FloatArray, normal: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _plane(point: ArrayLike, normal: ArrayLike) -> tuple[FloatArray, FloatArray]:
     q = np.asarray(point, dtype=np.float64).reshape(-1)
     nrm = np.asarray(normal, dtype=np.float64).reshape(-1)
     if q.shape != (3,) or nrm.shape != (3,) or not (np.isfinite(q).all() and np.isfinite(nrm).all()):
@@ -572,7 +580,7 @@ def floor_feasibility(
     *,
     point: FloatArray,
     normal: FloatArray,
-) -> FloatArray:
+) -> NDArray[np.bool_]:
     """True where the primitive stays strictly on the normal's side of the plane through ``point`` over
     [0, T] (touching counts as infeasible). Shape (N,), bool. ``normal`` need not be unit length."""
     t = _durations(T)
@@ -608,15 +616,17 @@ class CandidateBatch(NamedTuple):
     """(N, 3) initial jerk (m/s^3)."""
     cost: FloatArray
     """(N,) J (m^2/s^6)."""
-    codes: FloatArray
+    codes: NDArray[np.int64]
     """(N,) int64 :class:`InputFeasibility` codes."""
-    floor_ok: FloatArray
+    floor_ok: NDArray[np.bool_]
     """(N,) bool, floor test passed (all True when no plane is given)."""
 
     @property
-    def feasible(self) -> FloatArray:
+    def feasible(self) -> NDArray[np.bool_]:
         """(N,) bool: input test FEASIBLE and floor test passed (INDETERMINABLE counts as infeasible)."""
-        return (self.codes == InputFeasibility.FEASIBLE) & self.floor_ok
+        # a typed local: numpy types ndarray == Any
+        ok: NDArray[np.bool_] = (self.codes == InputFeasibility.FEASIBLE) & self.floor_ok
+        return ok
 
 
 def evaluate_candidates(
@@ -644,7 +654,7 @@ def evaluate_candidates(
     t, P0, V0, A0, PF, VF, AF = _boundary_arrays(p0, v0, a0, T, pf, vf, af, mode)
     n = t.size
     check = plane_point is not None
-    if check:
+    if plane_point is not None:
         q, nrm = _plane(plane_point, plane_normal if plane_normal is not None else (0.0, 0.0, 1.0))
     else:
         q, nrm = np.zeros(3), np.array([0.0, 0.0, 1.0])
@@ -666,7 +676,7 @@ def evaluate_candidates(
 # --------------------------------------------------------------------------------------------------
 
 
-def _vec3(x: object, name: str) -> FloatArray:
+def _vec3(x: ArrayLike, name: str) -> FloatArray:
     a = np.asarray(x, dtype=np.float64).reshape(-1)
     if a.shape != (3,) or not np.isfinite(a).all():
         raise ValueError(f"{name} must be a finite (3,) vector, got shape {np.shape(x)}")
@@ -775,7 +785,8 @@ class MinJerkTrajectory:
 
     def sample_packed(self, t: float) -> FloatArray:
         """As :meth:`sample`, stacked in one new array (4, 3): rows p, v, a, j."""
-        return _sample_one(self._packed, self.t0, self.T, float(t))
+        o: FloatArray = _sample_one(self._packed, self.t0, self.T, float(t))
+        return o
 
     def sample_many(self, ts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """As :meth:`sample` at the absolute times ``ts`` (n,): four (n, 3) arrays."""

@@ -286,7 +286,7 @@ def _eval_arcs(s: float, seg: FloatArray, geo: FloatArray) -> tuple[float, float
         s -= n * period
         sx = n * geo[2]
         sy = n * geo[3]
-    i = np.searchsorted(seg[:, 0], s, side="right") - 1
+    i = int(np.searchsorted(seg[:, 0], s, side="right")) - 1
     if i < 0:
         i = 0
     sig = s - seg[i, 0]

@@ -43,7 +43,7 @@ class _NormalStream:
     def row(self) -> FloatArray:
         if self._i >= self._buf.shape[0]:
             self._advance_block()
-        r = self._buf[self._i]
+        r: FloatArray = self._buf[self._i]
         self._i += 1
         return r
 
@@ -459,21 +459,22 @@ def range_to_surface(
     """Distance (m) along the unit ray o_W + lambda d_W, lambda >= 0, to the first surface: the pad
     square (at height p_WP[2], centred at p_WP, heading ``yaw``) or the ground z = 0. ``inf`` when the
     ray does not point down. The platform's body under the pad is not modelled."""
-    dz = d_W[2]
+    dz: float = d_W[2]
     if dz >= 0.0:
         return math.inf
-    h = p_WP[2]
+    h: float = p_WP[2]
+    oz: float = o_W[2]
     # a sensor at the feet of a vehicle standing on the pad sits a millimetre into it (the contact
     # model's compression): within the pad's thickness it still sees the pad, at range 0
-    if o_W[2] >= h - PAD_THICKNESS_M:
-        lam = max(o_W[2] - h, 0.0) / -dz
+    if oz >= h - PAD_THICKNESS_M:
+        lam = max(oz - h, 0.0) / -dz
         hx = o_W[0] + lam * d_W[0] - p_WP[0]
         hy = o_W[1] + lam * d_W[1] - p_WP[1]
         c, s = math.cos(yaw), math.sin(yaw)
         half = 0.5 * pad_size_m
         if abs(c * hx + s * hy) <= half and abs(-s * hx + c * hy) <= half:
             return lam
-    return max(o_W[2], 0.0) / -dz
+    return max(oz, 0.0) / -dz
 
 
 @njit(cache=True)
