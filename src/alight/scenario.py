@@ -78,6 +78,23 @@ class SpeedProfileSpec(_Strict):
         return self
 
 
+class TelemetrySpec(_Strict):
+    """The platform's own GNSS fix, broadcast to the aircraft (``sim/telemetry.py``)."""
+
+    rate_hz: PositiveFloat = 10.0
+    """Fixes per second (Hz)."""
+    noise_m: NonNegFloat = 0.5
+    """Per-axis standard deviation of the white position noise (m)."""
+    velocity_noise_mps: NonNegFloat = 0.1
+    """Per-axis standard deviation of the white velocity noise (m/s)."""
+    latency_s: Annotated[float, Field(ge=0, le=5.0, allow_inf_nan=False)] = 0.2
+    """Delay from the fix to its arrival on the aircraft (s), at most 5."""
+    bias_m: NonNegFloat = 1.0
+    """Standard deviation of the constant position bias per horizontal axis, half of it vertically (m)."""
+    dropout_prob: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.0
+    """Probability that a fix is lost."""
+
+
 class PlatformSpec(_Strict):
     """The ground vehicle that carries the pad."""
 
@@ -96,6 +113,8 @@ class PlatformSpec(_Strict):
     random_max_curvature: PositiveFloat = 0.15
     speed_profile: SpeedProfileSpec | None = None
     """Changes of speed along the path (the path's geometry stays); None: ``speed_mps`` throughout."""
+    telemetry: TelemetrySpec | None = None
+    """The platform broadcasts its GNSS fix to the aircraft; None (default): no telemetry."""
 
 
 def _as_list(value: Any) -> Any:

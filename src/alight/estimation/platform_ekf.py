@@ -46,6 +46,12 @@ from scipy.special import chdtri
 
 from alight.errors import EstimationError
 from alight.estimation.ego_ekf import NOT_POSITIVE_DEFINITE, OK, _mm, _mmt, chol_solve
+from alight.estimation.telemetry import (
+    TelemetryBias,
+    TelemetryFusionConfig,
+    carry_fix,
+    telemetry_adds_information,
+)
 from alight.types import FloatArray, PlatformEstimate, PlatformMeasurement
 
 REJECTED = 3
@@ -541,8 +547,16 @@ class _Buffered:
 class PlatformEkf:
     """Platform estimator of paper 000 Sec. II-C (see the module docstring for the design)."""
 
-    def __init__(self, config: PlatformEkfConfig | None = None) -> None:
+    def __init__(
+        self, config: PlatformEkfConfig | None = None, telemetry: TelemetryFusionConfig | None = None
+    ) -> None:
         self.config = config if config is not None else PlatformEkfConfig()
+        # The telemetry link's bias belongs to the link, not to the track: reset() keeps it.
+        self.telemetry = TelemetryBias(telemetry)
+        self.n_telemetry_fused = 0
+        """Telemetry fixes fused (not counting those buffered for the initial fit)."""
+        self.n_telemetry_skipped = 0
+        """Fixes not fused: stale, adding nothing beyond the bias's uncertainty, or gated out."""
         c = self.config
         n = c.state_dim
         self._n = n
@@ -681,6 +695,72 @@ class PlatformEkf:
         self._consecutive_rejections = 0
         self._rejected.clear()
         self.n_updates += 1
+        return True
+
+    # ---- telemetry (estimation/telemetry.py) ------------------------------------------------------
+
+    def learn_telemetry_bias(self, measurement: PlatformMeasurement) -> None:
+        """A camera measurement that was used: a measurement of the telemetry bias when a fix near its
+        capture time exists (nothing happens without telemetry)."""
+        if self.telemetry.has_fix:
+            self.telemetry.on_camera(float(measurement.t), measurement.p_WP, measurement.cov_p_WP)
+
+    def update_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
+        """Fuse the platform's own fix taken at ``t_stamp`` (position (3,) m, velocity (3,) m/s, the
+        receiver's covariance (3, 3) m^2); it may arrive late. True when fused or buffered.
+
+        The fix is carried on its velocity to the time it is fused at, ``max(filter time, t_stamp -
+        time_guard_s)`` (the filter's time never moves past what a later camera measurement may have been
+        captured at), the bias estimate removed and its covariance added. Before the filter has a track
+        the fix goes into the initial line fit like a camera measurement; after, it is fused as a position
+        measurement unless the filter is already more certain than the bias is known
+        (:func:`telemetry_adds_information`). A gated-out fix is skipped, never counted toward
+        re-initialisation: the camera, not the telemetry, decides that the track is lost."""
+        p = np.asarray(p_WP, dtype=np.float64)
+        v = np.asarray(v_WP, dtype=np.float64)
+        c = np.asarray(cov, dtype=np.float64)
+        if p.shape != (3,) or v.shape != (3,) or c.shape != (3, 3):
+            raise EstimationError(
+                "update_telemetry: p_WP (3,), v_WP (3,), cov (3, 3) expected, "
+                f"got {p.shape}, {v.shape}, {c.shape}"
+            )
+        if not (
+            math.isfinite(t_stamp) and np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(c).all()
+        ):
+            raise EstimationError(f"update_telemetry: non-finite fix at t={t_stamp}")
+        tc = self.telemetry.config
+        self.telemetry.add_fix(t_stamp, p, v, c)
+        t_fuse = t_stamp - tc.time_guard_s
+        if math.isfinite(self._t):
+            t_fuse = max(t_fuse, self._t)
+        if abs(t_fuse - t_stamp) > tc.max_carry_s:
+            self.n_telemetry_skipped += 1
+            return False
+        p_c, c_c = carry_fix(t_stamp, p, v, c, t_fuse, tc.velocity_std_mps)
+        z, R = self.telemetry.corrected(p_c, c_c, t_fuse)
+        if not self._initialized:
+            was = self._initialized
+            used = self.update(PlatformMeasurement(t=t_fuse, p_WP=z, cov_p_WP=R))
+            if self._initialized and not was:
+                # the fit treated the fixes' common bias as independent noise: put it back
+                self._P[0:3, 0:3] += self.telemetry.P
+            return used
+        if not telemetry_adds_information(self._P[0:2, 0:2], self.telemetry.P[0:2, 0:2]):
+            self.n_telemetry_skipped += 1
+            return False
+        gate = self._gate3 if self.config.gating else 0.0
+        status = platform_update_kernel(
+            self._x, self._P, t_fuse - self._t, z, R, 3, self._q, self.config.max_step, self._yaw_period,
+            gate, not self.config.allow_reverse, self._xo, self._Po, self._info,
+        )  # fmt: skip
+        if status != OK:
+            self.n_telemetry_skipped += 1
+            return False
+        self._x, self._xo = self._xo, self._x
+        self._P, self._Po = self._Po, self._P
+        self._t = t_fuse
+        self._last = _Buffered(t_fuse, z, R)
+        self.n_telemetry_fused += 1
         return True
 
     def _reinitialize(self) -> None:
@@ -846,4 +926,6 @@ class PlatformEkf:
             "n_rejected": self.n_rejected,
             "n_out_of_order": self.n_out_of_order,
             "n_reinitializations": self.n_reinitializations,
+            "n_telemetry_fused": self.n_telemetry_fused,
+            "n_telemetry_skipped": self.n_telemetry_skipped,
         }
