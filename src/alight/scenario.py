@@ -488,6 +488,19 @@ class MissionSpec(_Strict):
     the body, follows it: holding position in a side wind tilts the vehicle and its view moves
     ``h tan(tilt)`` downwind (mission/README.md has the measurements). False flies the body on the
     pattern, as papers 000 and 004 do."""
+    intercept: bool = False
+    """Fly to meet the platform's predicted path at the earliest point the vehicle can reach at its top
+    speed (from the airframe), instead of chasing it (planning/envelope.py); for a fast platform, with
+    ``platform.telemetry``. False: paper 000's tracking."""
+    adaptive_horizon: bool = False
+    """Size the candidates' horizon from the distance to cover and the airframe's acceleration instead of
+    ``planner.horizon_min_s``/``horizon_max_s`` alone."""
+    no_feasible: Literal["keep", "extend"] = "keep"
+    """When no candidate is feasible: ``keep`` the plan being flown (paper 000), or ``extend`` the horizon
+    (doubling, three times) and then fly the longest candidate with the inputs clipped."""
+    max_platform_speed_mps: NonNegFloat | None = None
+    """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
+    take-off, and a search after a sighting is centred on the prediction. None: the fixed search area."""
 
 
 class PlannerSpec(_Strict):

@@ -745,7 +745,9 @@ class PlatformEkf:
                 # the fit treated the fixes' common bias as independent noise: put it back
                 self._P[0:3, 0:3] += self.telemetry.P
             return used
-        if not telemetry_adds_information(self._P[0:2, 0:2], self.telemetry.P[0:2, 0:2]):
+        dt = t_fuse - self._t
+        platform_propagate(self._x, self._P, dt, self._q, self.config.max_step, self._xo, self._Po)
+        if not telemetry_adds_information(self._Po[0:2, 0:2], self.telemetry.P[0:2, 0:2]):
             self.n_telemetry_skipped += 1
             return False
         gate = self._gate3 if self.config.gating else 0.0

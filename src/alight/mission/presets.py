@@ -151,6 +151,12 @@ def _flight_core(
             camera_fov_rad=fov_rad,
             search_pattern=sc.mission.search_pattern,  # type: ignore[attr-defined]
             aim_camera=sc.mission.aim_camera,  # type: ignore[attr-defined]
+            intercept=sc.mission.intercept,  # type: ignore[attr-defined]
+            adaptive_horizon=sc.mission.adaptive_horizon,  # type: ignore[attr-defined]
+            no_feasible=sc.mission.no_feasible,  # type: ignore[attr-defined]
+            max_platform_speed_mps=sc.mission.max_platform_speed_mps,  # type: ignore[attr-defined]
+            max_tilt_rad=airframe.max_tilt_rad,
+            rotor_drag_per_s=airframe.rotor_drag[0],
             **(
                 {}
                 if sc.mission.search_speed_uncertainty_mps is None  # type: ignore[attr-defined]
