@@ -171,6 +171,28 @@ def _platform_jerk(target: PlatformEstimate) -> FloatArray:
     return np.array([-w * ay, w * ax, 0.0])
 
 
+class _SplitAxes:
+    """A reference whose horizontal axes follow one primitive and whose height follows another.
+
+    Why: a long intercept primitive (tens of seconds) shares its duration across the axes, and from a
+    climbing start a minimum-jerk height profile over that long a time overshoots by about the initial
+    climb rate times the duration (from 2 m/s over 20 s: 16 m above its goal). The height gets its own
+    short primitive to the planned end height instead."""
+
+    def __init__(self, xy: MinJerkTrajectory, z: MinJerkTrajectory) -> None:
+        self.xy, self.z = xy, z
+        self.t_end = xy.t_end
+
+    def sample(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        pvaj = self.sample_packed(t)
+        return pvaj[0], pvaj[1], pvaj[2], pvaj[3]
+
+    def sample_packed(self, t: float) -> FloatArray:
+        out = self.xy.sample_packed(t)
+        out[:, 2] = self.z.sample_packed(t)[:, 2]
+        return out
+
+
 class Guidance:
     """Turns the mission mode and the estimates into a reference trajectory."""
 
@@ -184,7 +206,8 @@ class Guidance:
         self.planner = planner
         self.config = config or GuidanceConfig()
         self._mode: Mode | None = None
-        self._traj: MinJerkTrajectory | None = None
+        self._traj: MinJerkTrajectory | _SplitAxes | None = None
+        self._plan: MinJerkTrajectory | None = None
         self._route: ExplorationRoute | None = None
         self._expansions = 0
         self._hold: Reference | None = None
@@ -314,7 +337,7 @@ class Guidance:
         cfg, mcfg = self.config, self.mission_config
         p0, v0, _ = self._start_state(t, ego)  # from the previous mode's reference
         self._mode, self._mode_t0, self._z_entry = mode, t, float(ego.p_WB[2])
-        self._traj, self._route = None, None
+        self._traj, self._route, self._plan = None, None, None
         if mode in _AIMED_MODES:
             p0 = p0 - self._aim_W  # the aimed references are flown with the offset added
         if mode is Mode.TAKEOFF:
@@ -449,13 +472,31 @@ class Guidance:
                 pf = p_pred[0] + np.array([0.0, 0.0, height])
                 af = a_pred[0] if pcfg.end_constraint.name == "POS_VEL_ACC" else _ZERO3
                 T = float(longer[-1] - t)
-                self._traj = MinJerkTrajectory.from_boundary(t, T, p0, v0, a0, pf, v_pred[0], af)
+                plan = MinJerkTrajectory.from_boundary(t, T, p0, v0, a0, pf, v_pred[0], af)
+                self._plan = plan
+                self._traj = self._split_vertical(t, plan, p0, v0, a0)
                 self.planner.reset()
                 return
         if result.trajectory is not None:
-            if result.trajectory is not self._traj:
+            if result.trajectory is not self._plan:
                 self.plans_adopted += 1
-            self._traj = result.trajectory
+                self._plan = result.trajectory
+                self._traj = self._split_vertical(t, result.trajectory, p0, v0, a0)
+
+    def _split_vertical(
+        self, t: float, plan: MinJerkTrajectory, p0: FloatArray, v0: FloatArray, a0: FloatArray
+    ) -> MinJerkTrajectory | _SplitAxes:
+        """With ``intercept``, a plan longer than the climb to its end height gets its own height profile
+        (:class:`_SplitAxes`); otherwise the plan as it is (paper 000's behaviour)."""
+        if not self.config.intercept:
+            return plan
+        z_end = float(plan.sample(plan.t_end)[0][2])
+        T_z = max(2.0, 2.0 * abs(z_end - float(p0[2])) / self.config.cruise_speed_mps)
+        if plan.t_end - t <= T_z:
+            return plan
+        pf = np.array([p0[0], p0[1], z_end])
+        z = MinJerkTrajectory.from_boundary(t, T_z, p0, v0, a0, pf, _ZERO3, _ZERO3)
+        return _SplitAxes(plan, z)
 
     @staticmethod
     def _predict(

@@ -85,16 +85,18 @@ def adaptive_horizon(
 
     A rest-to-rest minimum-jerk move over d needs ``T >= sqrt(5.77 d / a_max)`` (its peak acceleration is
     5.77 d / T^2), so a fixed 1-3 s window has no feasible candidate beyond ~5-15 m: the shortest duration
-    is that bound (never below ``horizon_min_s``), the longest twice it (never below ``horizon_max_s``),
-    and the window reaches the intercept time when there is one (the end point then lies on the
-    platform's path at a time the vehicle can be there)."""
+    is that bound (never below ``horizon_min_s``) and the longest twice it (never below
+    ``horizon_max_s``).
+
+    With an intercept time the window is ``[T, 1.1 T]`` (T never below ``horizon_min_s``): the
+    planner picks the cheapest candidate, which is the longest one, and a window reaching far beyond T
+    would put the meeting point later at every replanning, so that the vehicle never arrives."""
+    if t_intercept_s is not None and math.isfinite(t_intercept_s):
+        lo = max(horizon_min_s, t_intercept_s)
+        return lo, 1.1 * lo
     t_acc = math.sqrt(MIN_JERK_PEAK_ACCEL * max(distance_m, 0.0) / accel_max_mps2)
     lo = max(horizon_min_s, t_acc)
-    hi = max(horizon_max_s, 2.0 * lo)
-    if t_intercept_s is not None and math.isfinite(t_intercept_s):
-        hi = max(hi, 1.2 * t_intercept_s)
-        lo = min(lo, max(horizon_min_s, t_intercept_s))
-    return lo, hi
+    return lo, max(horizon_max_s, 2.0 * lo)
 
 
 def search_half_width(base_half_width_m: float, elapsed_s: float, max_platform_speed_mps: float) -> float:
