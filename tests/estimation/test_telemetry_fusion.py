@@ -84,9 +84,11 @@ def test_telemetry_only_follows_the_fixes_within_noise_and_bias() -> None:
     assert max(errors[3:]) < bias_xy + 1.0
     assert ekf.telemetry.n_bias_updates == 0
     np.testing.assert_allclose(ekf.telemetry.b, 0.0)
-    # and the filter does not claim to know better than the bias prior
+    # and the filter does not claim to know much better than the bias prior: a fix is fused only while
+    # the filter's variance exceeds the bias's, and its own R includes the bias's, so after it the
+    # variance is at least half the bias's (std >= 1/sqrt(2) of it)
     std = math.sqrt(0.5 * np.trace(ekf.state(20.0).cov_p_WP[:2, :2]))
-    assert std > 0.8 * ekf.telemetry.config.bias_prior_std_m
+    assert std > 0.7 * ekf.telemetry.config.bias_prior_std_m
 
 
 def test_camera_makes_the_bias_converge_to_the_truth() -> None:

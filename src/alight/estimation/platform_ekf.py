@@ -222,11 +222,14 @@ def platform_propagate(
 @njit(cache=True)
 def platform_residual(x: FloatArray, z: FloatArray, m: int, yaw_period: float, r: FloatArray) -> None:
     """Residual ``z - h(x)`` (m,): position (3), and with m = 4 the yaw wrapped to the measurement's
-    symmetry period (a tag that looks the same every ``yaw_period`` rad measures yaw modulo that)."""
+    symmetry period (a tag that looks the same every ``yaw_period`` rad measures yaw modulo that); with
+    m = 5 also the speed ``v_t`` (a telemetry fix's velocity as heading and speed)."""
     for i in range(3):
         r[i] = z[i] - x[i]
-    if m == 4:
+    if m >= 4:
         r[3] = _wrap(z[3] - x[I_THETA], yaw_period)
+    if m == 5:
+        r[4] = z[4] - x[I_V]
 
 
 @njit(cache=True)
@@ -586,6 +589,9 @@ class PlatformEkf:
         self._rejected: list[_Buffered] = []
         self._last: _Buffered | None = None
         self._consecutive_rejections = 0
+        self._t_heard = -math.inf
+        """Time of the last telemetry fix that agreed with the estimate but was not fused (it would have
+        added nothing): the estimate is as fresh as that fix (-inf without telemetry)."""
         self.n_updates = 0
         """Measurements fused by the EKF (not counting those used by the initial fit)."""
         self.n_rejected = 0
@@ -749,10 +755,42 @@ class PlatformEkf:
         platform_propagate(self._x, self._P, dt, self._q, self.config.max_step, self._xo, self._Po)
         if not telemetry_adds_information(self._Po[0:2, 0:2], self.telemetry.P[0:2, 0:2]):
             self.n_telemetry_skipped += 1
+            # not fused, but heard: if it agrees with the estimate (within the gate), the estimate is
+            # confirmed as of its time (the mission's estimate age)
+            r = z - self._xo[0:3]
+            S = self._Po[0:3, 0:3] + R
+            if not self.config.gating or float(r @ np.linalg.solve(S, r)) <= self._gate3:
+                self._t_heard = max(self._t_heard, t_fuse)
+            self._fuse_fix(t_fuse, z, R, v, position=False)
+            return True
+        return self._fuse_fix(t_fuse, z, R, v, position=True)
+
+    def _fuse_fix(
+        self, t_fuse: float, z: FloatArray, R: FloatArray, v_WP: FloatArray, *, position: bool
+    ) -> bool:
+        """Fuse a fix at ``t_fuse``: its position ``z`` (3,) with covariance ``R`` unless not
+        ``position``, and its horizontal velocity as heading and speed when it is fast enough for a
+        heading (``telemetry_velocity_min_mps``). The velocity carries no bias, so it is fused even when
+        the position adds nothing; the kernel measures the first m states, so a position left out gets a
+        variance large enough to carry no weight."""
+        tc = self.telemetry.config
+        speed = float(math.hypot(v_WP[0], v_WP[1]))
+        m = 5 if speed >= tc.velocity_min_mps else 3
+        if m == 3 and not position:
             return False
-        gate = self._gate3 if self.config.gating else 0.0
+        zz = np.empty(m)
+        zz[0:3] = z
+        Rm = np.zeros((m, m))
+        Rm[0:3, 0:3] = R if position else np.eye(3) * 1e6
+        if m == 5:
+            sv2 = tc.velocity_std_mps**2
+            zz[3] = math.atan2(v_WP[1], v_WP[0])
+            zz[4] = speed
+            Rm[3, 3] = sv2 / speed**2  # the heading's variance, linearised: sigma_v^2 / |v|^2
+            Rm[4, 4] = sv2
+        gate = float(chdtri(m, 1.0 - self.config.gate_probability)) if self.config.gating else 0.0
         status = platform_update_kernel(
-            self._x, self._P, t_fuse - self._t, z, R, 3, self._q, self.config.max_step, self._yaw_period,
+            self._x, self._P, t_fuse - self._t, zz, Rm, m, self._q, self.config.max_step, 2.0 * math.pi,
             gate, not self.config.allow_reverse, self._xo, self._Po, self._info,
         )  # fmt: skip
         if status != OK:
@@ -880,8 +918,9 @@ class PlatformEkf:
         p, v, a, yaw = self._ahead(x, np.zeros(1))
         # fresh arrays of this call, owned by nobody else: no copies needed
         return PlatformEstimate.trusted(
-            t, p[0].copy(), v[0].copy(), a[0].copy(), float(yaw[0]), P[0:3, 0:3].copy(), self._t
-        )
+            t, p[0].copy(), v[0].copy(), a[0].copy(), float(yaw[0]), P[0:3, 0:3].copy(),
+            max(self._t, self._t_heard),
+        )  # fmt: skip
 
     @staticmethod
     def _ahead(x: FloatArray, dts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:

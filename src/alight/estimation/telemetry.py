@@ -42,9 +42,12 @@ class TelemetryFusionConfig:
     """Prior standard deviation of the telemetry bias per axis, before the camera has seen the pad (m)."""
     bias_walk: float = 0.02
     """Random-walk density of the bias (m/sqrt(s)): a GNSS bias drifts by centimetres per minute."""
-    velocity_std_mps: float = 0.3
-    """Uncertainty of the velocity a fix is carried in time with (m/s): its noise and the platform's
-    unmodelled acceleration."""
+    velocity_std_mps: float = 0.2
+    """Uncertainty of a fix's velocity (m/s): its noise and the platform's unmodelled acceleration; for
+    carrying a fix in time and for fusing the velocity as heading and speed."""
+    velocity_min_mps: float = 1.0
+    """A fix's velocity is fused (as heading and speed) only above this speed (m/s): below, its heading
+    is noise."""
     time_guard_s: float = 0.25
     """A fix is fused no later than this before its stamp (s), so that a camera measurement arriving
     afterwards (captured up to the camera's latency earlier) is still in time order for the filter. Keep
@@ -57,7 +60,7 @@ class TelemetryFusionConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"telemetry.{name} must be positive, got {v}")
-        for name in ("bias_walk", "time_guard_s"):
+        for name in ("bias_walk", "time_guard_s", "velocity_min_mps"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"telemetry.{name} must be >= 0, got {v}")
