@@ -402,6 +402,10 @@ class TouchdownSpec(_Strict):
     """Landed needs the thrust below this fraction of hover ..."""
     landed_s: PositiveFloat | None = None
     """... for this long (s)."""
+    level_to: Literal["vertical", "steady"] | None = None
+    """On ground contact level the vehicle toward the vertical (default) or toward the thrust direction
+    it held on average before contact (``steady``: on a fast deck it leans into the drag of its airspeed;
+    levelling brakes it against the deck)."""
 
 
 class RangeFinderSpec(_Strict):

@@ -395,6 +395,7 @@ class Pipeline:
         self.last_reference = ref
         cmd = self.controller.command(ego, ref)
         self.stats.charge("controller", t0)
+        self.touchdown.observe_attitude(t, ego.q_WB)
         if self._detector_armed():
             cmd = self._touchdown_step(t, ego, target, cmd)
         return cmd
