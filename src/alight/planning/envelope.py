@@ -27,13 +27,27 @@ MIN_JERK_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 (5.77; the quintic 10 s^3 - 15 s^4 + 6 s^5 has its largest second derivative at s = 1/2 - sqrt(3)/6)."""
 
 
-def intercept_time(p0_xy: FloatArray, t_rel: FloatArray, p_xy: FloatArray, speed_mps: float) -> float | None:
-    """Earliest T (s from now) with ``|p_xy(T) - p0_xy| <= speed_mps T``, the platform's predicted
-    horizontal positions ``p_xy`` (k, 2) sampled at increasing ``t_rel`` (k,) (s from now, t_rel[0] >= 0);
-    linear between the samples. None when the platform stays out of reach over the samples."""
+def reach_m(t: FloatArray, speed_mps: float, accel_mps2: float | None = None) -> FloatArray:
+    """Distance (m) a vehicle starting from rest covers in ``t`` (s) accelerating at ``accel_mps2`` up to
+    ``speed_mps`` (``speed t`` without an acceleration): ``a t^2 / 2`` until ``s / a``, then
+    ``s t - s^2 / (2 a)``."""
+    t = np.asarray(t, dtype=np.float64)
+    if accel_mps2 is None or not math.isfinite(accel_mps2):
+        return speed_mps * t
+    t_ramp = speed_mps / accel_mps2
+    return np.where(t < t_ramp, 0.5 * accel_mps2 * t * t, speed_mps * t - 0.5 * speed_mps * t_ramp)
+
+
+def intercept_time(
+    p0_xy: FloatArray, t_rel: FloatArray, p_xy: FloatArray, speed_mps: float, accel_mps2: float | None = None
+) -> float | None:
+    """Earliest T (s from now) at which the vehicle's reach (:func:`reach_m`: ``speed_mps T`` without an
+    ``accel_mps2``) covers ``|p_xy(T) - p0_xy|``, the platform's predicted horizontal positions ``p_xy``
+    (k, 2) sampled at increasing ``t_rel`` (k,) (s from now, t_rel[0] >= 0); linear between the samples.
+    None when the platform stays out of reach over the samples."""
     t = np.asarray(t_rel, dtype=np.float64)
     d = np.linalg.norm(np.asarray(p_xy, dtype=np.float64) - np.asarray(p0_xy, dtype=np.float64), axis=1)
-    gap = d - speed_mps * t  # <= 0 once the vehicle can be there
+    gap = d - reach_m(t, speed_mps, accel_mps2)  # <= 0 once the vehicle can be there
     hit = np.flatnonzero(gap <= 0.0)
     if hit.size == 0:
         return None
