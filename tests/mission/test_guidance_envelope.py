@@ -20,7 +20,9 @@ def _ego(t: float, p: FloatArray) -> EgoState:
 def _guidance(**kw: object) -> Guidance:
     config = GuidanceConfig(search_area=(-20.0, 20.0, -20.0, 20.0), **kw)  # type: ignore[arg-type]
     # the scenario's default horizon, 1-3 s
-    planner = CandidatePlanner(PlannerConfig.from_airframe(DEFAULT_AIRFRAME, horizon_min_s=1.0, horizon_max_s=3.0))
+    planner = CandidatePlanner(
+        PlannerConfig.from_airframe(DEFAULT_AIRFRAME, horizon_min_s=1.0, horizon_max_s=3.0)
+    )
     return Guidance(MissionConfig(), planner, config)
 
 
@@ -59,7 +61,9 @@ def test_search_after_a_sighting_is_centred_on_the_prediction() -> None:
     hover = np.array([0.0, 0.0, 4.0])
     g.update(0.0, Mode.TAKEOFF, _ego(0.0, [0.0, 0.0, 0.1]), None, None, hover)
     # last seen at t = 25 s; now t = 30 s, predicted at (50, 10), std 1 m: 3 + 4 x 5 = 23 m
-    target = PlatformEstimate(30.0, np.array([50.0, 10.0, 0.5]), np.zeros(3), np.zeros(3), 0.0, np.eye(3), 25.0)
+    target = PlatformEstimate(
+        30.0, np.array([50.0, 10.0, 0.5]), np.zeros(3), np.zeros(3), 0.0, np.eye(3), 25.0
+    )
     g.update(30.0, Mode.EXPLORE, _ego(30.0, [40.0, 0.0, 12.0]), target, None, hover)
     assert g._area == pytest.approx((27.0, 73.0, -13.0, 33.0))
 
