@@ -799,7 +799,8 @@ class PlatformEkf:
         self._x, self._xo = self._xo, self._x
         self._P, self._Po = self._Po, self._P
         self._t = t_fuse
-        self._last = _Buffered(t_fuse, z, R)
+        if position:
+            self._last = _Buffered(t_fuse, z, R)
         self.n_telemetry_fused += 1
         return True
 
