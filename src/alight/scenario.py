@@ -102,6 +102,23 @@ class SpeedProfileSpec(_Strict):
         return self
 
 
+class TelemetrySpec(_Strict):
+    """The platform's own GNSS fix, broadcast to the aircraft (``sim/telemetry.py``)."""
+
+    rate_hz: PositiveFloat = 10.0
+    """Fixes per second (Hz)."""
+    noise_m: NonNegFloat = 0.5
+    """Per-axis standard deviation of the white position noise (m)."""
+    velocity_noise_mps: NonNegFloat = 0.1
+    """Per-axis standard deviation of the white velocity noise (m/s)."""
+    latency_s: Annotated[float, Field(ge=0, le=5.0, allow_inf_nan=False)] = 0.2
+    """Delay from the fix to its arrival on the aircraft (s), at most 5."""
+    bias_m: NonNegFloat = 1.0
+    """Standard deviation of the constant position bias per horizontal axis, half of it vertically (m)."""
+    dropout_prob: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.0
+    """Probability that a fix is lost."""
+
+
 class PlatformSpec(_Strict):
     """The ground vehicle that carries the pad."""
 
@@ -121,6 +138,8 @@ class PlatformSpec(_Strict):
     random_max_curvature: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = 0.15
     speed_profile: SpeedProfileSpec | None = None
     """Changes of speed along the path (the path's geometry stays); None: ``speed_mps`` throughout."""
+    telemetry: TelemetrySpec | None = None
+    """The platform broadcasts its GNSS fix to the aircraft; None (default): no telemetry."""
 
 
 def _as_list(value: Any) -> Any:
@@ -419,6 +438,10 @@ class TouchdownSpec(_Strict):
     """Landed needs the thrust below this fraction of hover ..."""
     landed_s: PositiveFloat | None = None
     """... for this long (s)."""
+    level_to: Literal["vertical", "steady"] | None = None
+    """On ground contact level the vehicle toward the vertical (default) or toward the thrust direction
+    it held on average before contact (``steady``: on a fast deck it leans into the drag of its airspeed;
+    levelling brakes it against the deck)."""
 
 
 class RangeFinderSpec(_Strict):
@@ -506,6 +529,19 @@ class MissionSpec(_Strict):
     the body, follows it: holding position in a side wind tilts the vehicle and its view moves
     ``h tan(tilt)`` downwind (mission/README.md has the measurements). False flies the body on the
     pattern, as papers 000 and 004 do."""
+    intercept: bool = False
+    """Fly to meet the platform's predicted path at the earliest point the vehicle can reach at its top
+    speed (from the airframe), instead of chasing it (planning/envelope.py); for a fast platform, with
+    ``platform.telemetry``. False: paper 000's tracking."""
+    adaptive_horizon: bool = False
+    """Size the candidates' horizon from the distance to cover and the airframe's acceleration instead of
+    ``planner.horizon_min_s``/``horizon_max_s`` alone."""
+    no_feasible: Literal["keep", "extend"] = "keep"
+    """When no candidate is feasible: ``keep`` the plan being flown (paper 000), or ``extend`` the horizon
+    (doubling, three times) and then fly the longest candidate with the inputs clipped."""
+    max_platform_speed_mps: NonNegFloat | None = None
+    """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
+    take-off, and a search after a sighting is centred on the prediction. None: the fixed search area."""
 
 
 class PlannerSpec(_Strict):

@@ -82,6 +82,20 @@ class PixelMeasured(Protocol):
 
 
 @runtime_checkable
+class TelemetryFusing(Protocol):
+    """A platform estimator that also fuses the platform's own GNSS telemetry (estimation/telemetry.py)."""
+
+    def update_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
+        """Fuse a fix taken at ``t_stamp`` (s): position (3,) m, velocity (3,) m/s in W, the receiver's
+        covariance (3, 3) m^2. It may arrive late. True when used."""
+        ...
+
+    def learn_telemetry_bias(self, measurement: PlatformMeasurement) -> None:
+        """A camera measurement the estimator used, to learn the telemetry's bias from."""
+        ...
+
+
+@runtime_checkable
 class EgoEstimator(Protocol):
     """Estimates the vehicle's own state from IMU samples and odometry."""
 
@@ -160,6 +174,7 @@ __all__ = [
     "PlatformEkf",
     "PlatformEkfConfig",
     "PlatformEstimator",
+    "TelemetryFusing",
     "SduKalmanFilter",
     "SduKfConfig",
 ]

@@ -65,6 +65,12 @@ from alight.estimation.guards import (
     check_time,
     check_vector,
 )
+from alight.estimation.telemetry import (
+    TelemetryBias,
+    TelemetryFusionConfig,
+    carry_fix,
+    telemetry_adds_information,
+)
 from alight.types import FloatArray, PlatformEstimate, PlatformMeasurement
 
 REJECTED = 3
@@ -235,11 +241,14 @@ def platform_propagate(
 @njit(cache=True)
 def platform_residual(x: FloatArray, z: FloatArray, m: int, yaw_period: float, r: FloatArray) -> None:
     """Residual ``z - h(x)`` (m,): position (3), and with m = 4 the yaw wrapped to the measurement's
-    symmetry period (a tag that looks the same every ``yaw_period`` rad measures yaw modulo that)."""
+    symmetry period (a tag that looks the same every ``yaw_period`` rad measures yaw modulo that); with
+    m = 5 also the speed ``v_t`` (a telemetry fix's velocity as heading and speed)."""
     for i in range(3):
         r[i] = z[i] - x[i]
-    if m == 4:
+    if m >= 4:
         r[3] = _wrap(z[3] - x[I_THETA], yaw_period)
+    if m == 5:
+        r[4] = z[4] - x[I_V]
 
 
 @njit(cache=True)
@@ -560,8 +569,16 @@ class _Buffered:
 class PlatformEkf:
     """Platform estimator of paper 000 Sec. II-C (see the module docstring for the design)."""
 
-    def __init__(self, config: PlatformEkfConfig | None = None) -> None:
+    def __init__(
+        self, config: PlatformEkfConfig | None = None, telemetry: TelemetryFusionConfig | None = None
+    ) -> None:
         self.config = config if config is not None else PlatformEkfConfig()
+        # The telemetry link's bias belongs to the link, not to the track: reset() keeps it.
+        self.telemetry = TelemetryBias(telemetry)
+        self.n_telemetry_fused = 0
+        """Telemetry fixes fused (not counting those buffered for the initial fit)."""
+        self.n_telemetry_skipped = 0
+        """Fixes not fused: stale, adding nothing beyond the bias's uncertainty, or gated out."""
         c = self.config
         n = c.state_dim
         self._n = n
@@ -591,6 +608,9 @@ class PlatformEkf:
         self._rejected: list[_Buffered] = []
         self._last: _Buffered | None = None
         self._consecutive_rejections = 0
+        self._t_heard = -math.inf
+        """Time of the last telemetry fix that agreed with the estimate but was not fused (it would have
+        added nothing): the estimate is as fresh as that fix (-inf without telemetry)."""
         self.n_updates = 0
         """Measurements fused by the EKF (not counting those used by the initial fit)."""
         self.n_rejected = 0
@@ -724,6 +744,107 @@ class PlatformEkf:
             self._late = []
             self._reinitialize()
 
+    # ---- telemetry (estimation/telemetry.py) ------------------------------------------------------
+
+    def learn_telemetry_bias(self, measurement: PlatformMeasurement) -> None:
+        """A camera measurement that was used: a measurement of the telemetry bias when a fix near its
+        capture time exists (nothing happens without telemetry)."""
+        if self.telemetry.has_fix:
+            self.telemetry.on_camera(float(measurement.t), measurement.p_WP, measurement.cov_p_WP)
+
+    def update_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
+        """Fuse the platform's own fix taken at ``t_stamp`` (position (3,) m, velocity (3,) m/s, the
+        receiver's covariance (3, 3) m^2); it may arrive late. True when fused or buffered.
+
+        The fix is carried on its velocity to the time it is fused at, ``max(filter time, t_stamp -
+        time_guard_s)`` (the filter's time never moves past what a later camera measurement may have been
+        captured at), the bias estimate removed and its covariance added. Before the filter has a track
+        the fix goes into the initial line fit like a camera measurement; after, it is fused as a position
+        measurement unless the filter is already more certain than the bias is known
+        (:func:`telemetry_adds_information`). A gated-out fix is skipped, never counted toward
+        re-initialisation: the camera, not the telemetry, decides that the track is lost."""
+        p = np.asarray(p_WP, dtype=np.float64)
+        v = np.asarray(v_WP, dtype=np.float64)
+        c = np.asarray(cov, dtype=np.float64)
+        if p.shape != (3,) or v.shape != (3,) or c.shape != (3, 3):
+            raise EstimationError(
+                "update_telemetry: p_WP (3,), v_WP (3,), cov (3, 3) expected, "
+                f"got {p.shape}, {v.shape}, {c.shape}"
+            )
+        if not (
+            math.isfinite(t_stamp) and np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(c).all()
+        ):
+            raise EstimationError(f"update_telemetry: non-finite fix at t={t_stamp}")
+        tc = self.telemetry.config
+        self.telemetry.add_fix(t_stamp, p, v, c)
+        t_fuse = t_stamp - tc.time_guard_s
+        if math.isfinite(self._t):
+            t_fuse = max(t_fuse, self._t)
+        if abs(t_fuse - t_stamp) > tc.max_carry_s:
+            self.n_telemetry_skipped += 1
+            return False
+        p_c, c_c = carry_fix(t_stamp, p, v, c, t_fuse, tc.velocity_std_mps)
+        z, R = self.telemetry.corrected(p_c, c_c, t_fuse)
+        if not self._initialized:
+            was = self._initialized
+            used = self.update(PlatformMeasurement(t=t_fuse, p_WP=z, cov_p_WP=R))
+            if self._initialized and not was:
+                # the fit treated the fixes' common bias as independent noise: put it back
+                self._P[0:3, 0:3] += self.telemetry.P
+            return used
+        dt = t_fuse - self._t
+        platform_propagate(self._x, self._P, dt, self._q, self.config.max_step, self._xo, self._Po)
+        if not telemetry_adds_information(self._Po[0:2, 0:2], self.telemetry.P[0:2, 0:2]):
+            self.n_telemetry_skipped += 1
+            # not fused, but heard: if it agrees with the estimate (within the gate), the estimate is
+            # confirmed as of its time (the mission's estimate age)
+            r = z - self._xo[0:3]
+            S = self._Po[0:3, 0:3] + R
+            if not self.config.gating or float(r @ np.linalg.solve(S, r)) <= self._gate3:
+                self._t_heard = max(self._t_heard, t_fuse)
+            self._fuse_fix(t_fuse, z, R, v, position=False)
+            return True
+        return self._fuse_fix(t_fuse, z, R, v, position=True)
+
+    def _fuse_fix(
+        self, t_fuse: float, z: FloatArray, R: FloatArray, v_WP: FloatArray, *, position: bool
+    ) -> bool:
+        """Fuse a fix at ``t_fuse``: its position ``z`` (3,) with covariance ``R`` unless not
+        ``position``, and its horizontal velocity as heading and speed when it is fast enough for a
+        heading (``telemetry_velocity_min_mps``). The velocity carries no bias, so it is fused even when
+        the position adds nothing; the kernel measures the first m states, so a position left out gets a
+        variance large enough to carry no weight."""
+        tc = self.telemetry.config
+        speed = float(math.hypot(v_WP[0], v_WP[1]))
+        m = 5 if speed >= tc.velocity_min_mps else 3
+        if m == 3 and not position:
+            return False
+        zz = np.empty(m)
+        zz[0:3] = z
+        Rm = np.zeros((m, m))
+        Rm[0:3, 0:3] = R if position else np.eye(3) * 1e6
+        if m == 5:
+            sv2 = tc.velocity_std_mps**2
+            zz[3] = math.atan2(v_WP[1], v_WP[0])
+            zz[4] = speed
+            Rm[3, 3] = sv2 / speed**2  # the heading's variance, linearised: sigma_v^2 / |v|^2
+            Rm[4, 4] = sv2
+        gate = float(chdtri(m, 1.0 - self.config.gate_probability)) if self.config.gating else 0.0
+        status = platform_update_kernel(
+            self._x, self._P, t_fuse - self._t, zz, Rm, m, self._q, self.config.max_step, 2.0 * math.pi,
+            gate, not self.config.allow_reverse, self._xo, self._Po, self._info,
+        )  # fmt: skip
+        if status != OK:
+            self.n_telemetry_skipped += 1
+            return False
+        self._x, self._xo = self._xo, self._x
+        self._P, self._Po = self._Po, self._P
+        self._t = t_fuse
+        if position:
+            self._last = _Buffered(t_fuse, z, R)
+        self.n_telemetry_fused += 1
+        return True
+
     def _reinitialize(self) -> None:
         rejected = self._rejected
         self.n_reinitializations += 1
@@ -848,8 +969,9 @@ class PlatformEkf:
         p, v, a, yaw = self._ahead(x, np.zeros(1))
         # fresh arrays of this call, owned by nobody else: no copies needed
         return PlatformEstimate.trusted(
-            t, p[0].copy(), v[0].copy(), a[0].copy(), float(yaw[0]), P[0:3, 0:3].copy(), self._t
-        )
+            t, p[0].copy(), v[0].copy(), a[0].copy(), float(yaw[0]), P[0:3, 0:3].copy(),
+            max(self._t, self._t_heard),
+        )  # fmt: skip
 
     @staticmethod
     def _ahead(x: FloatArray, dts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -898,4 +1020,6 @@ class PlatformEkf:
             "n_out_of_order": self.n_out_of_order,
             "n_reinitializations": self.n_reinitializations,
             "n_future": self.n_future,
+            "n_telemetry_fused": self.n_telemetry_fused,
+            "n_telemetry_skipped": self.n_telemetry_skipped,
         }

@@ -28,6 +28,8 @@ from alight.airframes import load_airframe
 from alight.cameras.pinhole import camera_pose_W
 from alight.control.rate import pack_low_level_params
 from alight.energy import flight_energy_J
+from alight.errors import ConfigError
+from alight.estimation import TelemetryFusing
 from alight.evaluation.log import MissionLog
 from alight.evaluation.physics import (
     IN_DECK,
@@ -64,6 +66,7 @@ from alight.sim.quadrotor import (
 )
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
+from alight.sim.telemetry import PlatformTelemetry, TelemetryConfig, TelemetryFix
 from alight.sim.textures import DistractorSpec, make_ground_texture
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
@@ -228,7 +231,9 @@ def run_mission(
     s = scenario
     if airframe is None:
         airframe = load_airframe(s.airframe)
-    seeds = np.random.SeedSequence(s.seed).spawn(9)
+    # Children by index: spawn(10)[:9] are the same as spawn(9)'s, so adding a component (the tenth
+    # child, telemetry) leaves every other component's random numbers as they were.
+    seeds = np.random.SeedSequence(s.seed).spawn(10)
     rngs = [np.random.default_rng(c) for c in seeds[:8]]
     rng_place, rng_render, rng_wind, rng_imu, rng_odo, rng_range, rng_perc, rng_pipe = rngs
 
@@ -288,6 +293,16 @@ def run_mission(
         tick_dt=TICK_DT,
     )
     faults.check_preset(s.preset, preset.uses_camera)
+    telemetry = None
+    if s.platform.telemetry is not None:
+        if not isinstance(pipeline.platform_estimator, TelemetryFusing):
+            raise ConfigError(
+                f"platform.telemetry: preset {s.preset}'s platform estimator "
+                f"({type(pipeline.platform_estimator).__name__}) cannot fuse telemetry"
+            )
+        tel = TelemetryConfig(**s.platform.telemetry.model_dump())
+        telemetry = PlatformTelemetry(tel, np.random.default_rng(seeds[9]))
+    tel_pending: deque[TelemetryFix] = deque()
 
     renderer = None
     if preset.uses_camera:
@@ -470,6 +485,16 @@ def run_mission(
             r = faults.range(t, rangefinder.measure_at(p_WB, q_WB, truth_p[k], float(truths.yaw[k]), pad))
             # as the sensor reports it: -inf inside its blind zone, +inf beyond its range (REP 117)
             pipeline.on_range(t, r)
+        if telemetry is not None:
+            # The platform's GNSS fix, taken now from the truth, reaches the pipeline after the link's
+            # latency stamped with the time of the fix.
+            if t + 1e-9 >= telemetry.next_fix_s:
+                fix = telemetry.fix(t, truth_p[k], truth_v[k])
+                if fix is not None:
+                    tel_pending.append(fix)
+            while tel_pending and tel_pending[0].t_arrival <= t + 1e-9:
+                fix = tel_pending.popleft()
+                pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
         if t + 1e-9 >= next_capture:
             # An image (or the truth sensor's report) is taken now and reaches the pipeline after the
             # processing latency; what it shows is fixed at the capture time.

@@ -35,8 +35,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from alight.airframe import DEFAULT_AIRFRAME
 from alight.mission.state_machine import Mission, MissionConfig, position_std_m
-from alight.planning.candidates import CandidatePlanner, sample_end_times
+from alight.planning.candidates import CandidatePlanner, PlanResult, PlanStatus, sample_end_times
+from alight.planning.envelope import (
+    adaptive_horizon,
+    horizontal_speed_limit,
+    intercept_time,
+    search_half_width,
+)
 from alight.planning.exploration import (
     ExplorationRoute,
     footprint_width_m,
@@ -98,7 +105,44 @@ class GuidanceConfig:
     abort_slow_height_m: float = 2.0
     """... below which it descends at the mission's landing speed (m)."""
 
+    intercept: bool = False
+    """Fly to meet the platform's predicted path where the vehicle can first be (an intercept point,
+    ahead of a fast platform) rather than chase its predicted positions over the fixed horizon
+    (planning/envelope.py). Off: paper 000's tracking."""
+    adaptive_horizon: bool = False
+    """Size the candidates' horizon from the distance to cover and the airframe's acceleration (and the
+    intercept time) instead of the planner's fixed ``[horizon_min_s, horizon_max_s]``."""
+    no_feasible: str = "keep"
+    """When no candidate is feasible: ``keep`` the plan being flown (paper 000), or ``extend``: plan again
+    with the horizon doubled, up to three times, and if still none fly the longest candidate with the
+    controller clipping its inputs (planning/README.md)."""
+    max_tilt_rad: float = DEFAULT_AIRFRAME.max_tilt_rad
+    """The airframe's tilt limit (rad): with the rotor drag, its top speed and horizontal acceleration."""
+    rotor_drag_per_s: float = DEFAULT_AIRFRAME.rotor_drag[0]
+    """The airframe's horizontal mass-normalised rotor drag (1/s)."""
+    speed_margin: float = 0.7
+    """Fraction of the airframe's top speed and horizontal acceleration the intercept is planned with,
+    leaving the rest to the position loop."""
+    max_speed_mps: float = 15.0
+    """Cap on the intercept speed (m/s), whatever the airframe could do."""
+    max_platform_speed_mps: float | None = None
+    """The fastest the platform may drive (m/s): the initial search area grows by this much per second
+    since take-off on every side, and a search after the platform was seen is centred on its prediction.
+    None: the fixed ``search_area``."""
+
     def __post_init__(self) -> None:
+        if self.no_feasible not in ("keep", "extend"):
+            raise ValueError(f"no_feasible must be 'keep' or 'extend', got {self.no_feasible!r}")
+        if not 0.0 < self.speed_margin <= 1.0:
+            raise ValueError(f"speed_margin must be in (0, 1], got {self.speed_margin}")
+        if not 0.0 < self.max_tilt_rad < math.pi / 2:
+            raise ValueError(f"max_tilt_rad must be in (0, pi/2), got {self.max_tilt_rad}")
+        if not (self.max_speed_mps > 0.0 and math.isfinite(self.max_speed_mps)):
+            raise ValueError(f"max_speed_mps must be positive, got {self.max_speed_mps}")
+        if self.max_platform_speed_mps is not None and not (
+            self.max_platform_speed_mps >= 0.0 and math.isfinite(self.max_platform_speed_mps)
+        ):
+            raise ValueError(f"max_platform_speed_mps must be >= 0, got {self.max_platform_speed_mps}")
         if not (self.aim_time_constant_s > 0.0 and math.isfinite(self.aim_time_constant_s)):
             raise ValueError(f"aim_time_constant_s must be positive, got {self.aim_time_constant_s}")
         if not (self.aim_max_tan_tilt >= 0.0 and math.isfinite(self.aim_max_tan_tilt)):
@@ -127,6 +171,28 @@ def _platform_jerk(target: PlatformEstimate) -> FloatArray:
     return np.array([-w * ay, w * ax, 0.0])
 
 
+class _SplitAxes:
+    """A reference whose horizontal axes follow one primitive and whose height follows another.
+
+    Why: a long intercept primitive (tens of seconds) shares its duration across the axes, and from a
+    climbing start a minimum-jerk height profile over that long a time overshoots by about the initial
+    climb rate times the duration (from 2 m/s over 20 s: 16 m above its goal). The height gets its own
+    short primitive to the planned end height instead."""
+
+    def __init__(self, xy: MinJerkTrajectory, z: MinJerkTrajectory) -> None:
+        self.xy, self.z = xy, z
+        self.t_end = xy.t_end
+
+    def sample(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        pvaj = self.sample_packed(t)
+        return pvaj[0], pvaj[1], pvaj[2], pvaj[3]
+
+    def sample_packed(self, t: float) -> FloatArray:
+        out = self.xy.sample_packed(t)
+        out[:, 2] = self.z.sample_packed(t)[:, 2]
+        return out
+
+
 class Guidance:
     """Turns the mission mode and the estimates into a reference trajectory."""
 
@@ -140,7 +206,8 @@ class Guidance:
         self.planner = planner
         self.config = config or GuidanceConfig()
         self._mode: Mode | None = None
-        self._traj: MinJerkTrajectory | None = None
+        self._traj: MinJerkTrajectory | _SplitAxes | None = None
+        self._plan: MinJerkTrajectory | None = None
         self._route: ExplorationRoute | None = None
         self._expansions = 0
         self._hold: Reference | None = None
@@ -161,6 +228,14 @@ class Guidance:
         self._abort_ground_z = 0.0
         self.search_radius_m = 0.0
         """Radius of the search around the predicted platform at the last reference (m)."""
+        self._t_start: float | None = None
+        self._area = self.config.search_area
+        self.t_intercept_s: float | None = None
+        """Time from the last replanning to the intercept point (s), None when not computed."""
+        self.plans_extended = 0
+        """Replannings that needed a longer horizon to find a feasible candidate."""
+        self.plans_clipped = 0
+        """Replannings that found none and flew the longest candidate unchecked."""
 
     @property
     def aim_offset_W(self) -> FloatArray:
@@ -215,9 +290,13 @@ class Guidance:
         """Replan for ``mode`` at time ``t`` (called at the planner's rate). ``mission``: the state
         machine, for its descent hold and its final action's phase and goal."""
         self._update_aim(t, mode, ego)
+        if self._t_start is None:
+            self._t_start = t
         self._descent_hold = mission is not None and mission.descent_hold
         entered = mode is not self._mode
         if entered:
+            if mode is Mode.EXPLORE:
+                self._area = self._search_area(t, target)
             self._enter(t, mode, ego, hover_point_W)
         if mode is Mode.ABORT and mission is not None and mission.abort_phase != self._abort_phase:
             self._enter_abort_phase(t, ego, mission.abort_phase, mission.abort_goal_W)
@@ -258,7 +337,7 @@ class Guidance:
         cfg, mcfg = self.config, self.mission_config
         p0, v0, _ = self._start_state(t, ego)  # from the previous mode's reference
         self._mode, self._mode_t0, self._z_entry = mode, t, float(ego.p_WB[2])
-        self._traj, self._route = None, None
+        self._traj, self._route, self._plan = None, None, None
         if mode in _AIMED_MODES:
             p0 = p0 - self._aim_W  # the aimed references are flown with the offset added
         if mode is Mode.TAKEOFF:
@@ -267,7 +346,7 @@ class Guidance:
             )
         elif mode is Mode.EXPLORE:
             self._expansions = 0
-            x0, x1, y0, y1 = cfg.search_area
+            x0, x1, y0, y1 = self._area
             spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
             if cfg.search_pattern == "spiral":
                 waypoints = spiral_waypoints(
@@ -308,17 +387,41 @@ class Guidance:
         """The next ring around the search area (``search_growth_m`` wide), flown in loops."""
         cfg, mcfg = self.config, self.mission_config
         self._expansions += 1
-        x0, x1, y0, y1 = cfg.search_area
+        x0, x1, y0, y1 = self._area
         spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
+        growth = cfg.search_growth_m
+        if cfg.max_platform_speed_mps is not None and self._route is not None:
+            # the platform kept driving while the last pass was flown: the ring is that much wider
+            growth = max(growth, cfg.max_platform_speed_mps * (t - self._route.approach.t0))
         waypoints = ring_waypoints(
             x0, x1, y0, y1,
-            cfg.search_growth_m * (self._expansions - 1), cfg.search_growth_m * self._expansions,
+            growth * (self._expansions - 1), growth * self._expansions,
             mcfg.explore_altitude_m, spacing,
         )  # fmt: skip
         p0, v0, _ = self._start_state(t, ego)
         self._route = ExplorationRoute(
             waypoints, t0=t, p0=p0 - self._aim_W, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps
         )
+
+    def _search_area(self, t: float, target: PlatformEstimate | None) -> tuple[float, float, float, float]:
+        """The area to explore from ``t``: the configured one, or with ``max_platform_speed_mps`` the area
+        the platform can have reached: the configured area grown by speed x time since take-off
+        (planning/envelope.py), or, once the platform was seen, a square around its predicted position
+        of half-width 3 standard deviations plus speed x time since the last sighting."""
+        cfg = self.config
+        v = cfg.max_platform_speed_mps
+        if v is None:
+            return cfg.search_area
+        x0, x1, y0, y1 = cfg.search_area
+        if target is not None:
+            half = search_half_width(3.0 * position_std_m(target), t - target.t_last_measurement, v)
+            half = max(
+                half, 0.5 * footprint_width_m(self.mission_config.explore_altitude_m, cfg.camera_fov_rad)
+            )
+            cx, cy = float(target.p_WP[0]), float(target.p_WP[1])
+            return cx - half, cx + half, cy - half, cy + half
+        grow = search_half_width(0.0, t - (self._t_start if self._t_start is not None else t), v)
+        return x0 - grow, x1 + grow, y0 - grow, y1 + grow
 
     def _track_height(self, t: float, ego: EgoState, target: PlatformEstimate, initialized: bool) -> float:
         """Height above the pad to track at (m).
@@ -345,23 +448,109 @@ class Guidance:
     def _replan_tracking(
         self, t: float, ego: EgoState, estimator: PlatformEstimator, target: PlatformEstimate
     ) -> None:
-        pcfg = self.planner.config
-        times = sample_end_times(t, pcfg.n_candidates, pcfg.horizon_min_s, pcfg.horizon_max_s)
-        if estimator.initialized:
-            p_pred, v_pred, a_pred, _ = estimator.predict_ahead(times)
-        else:  # only a position so far: go there and look
-            p_pred = np.repeat(target.p_WP[None, :], times.size, axis=0)
-            v_pred = np.zeros_like(p_pred)
-            a_pred = np.zeros_like(p_pred)
-        p_end = p_pred + np.array([0.0, 0.0, self._track_height(t, ego, target, estimator.initialized)])
+        pcfg, cfg = self.planner.config, self.config
+        lo, hi = pcfg.horizon_min_s, pcfg.horizon_max_s
+        if (cfg.intercept or cfg.adaptive_horizon) and estimator.initialized:
+            lo, hi = self._horizon(t, ego, estimator)
+        times = sample_end_times(t, pcfg.n_candidates, lo, hi)
+        height = self._track_height(t, ego, target, estimator.initialized)
         p0, v0, a0 = self._start_state(t, ego)
+        result = self._plan_to(t, times, estimator, target, height, p0, v0, a0)
+        if result.status is PlanStatus.NO_FEASIBLE and cfg.no_feasible == "extend":
+            for k in (1, 2, 3):
+                longer = t + (times - t) * 2.0**k
+                result = self._plan_to(t, longer, estimator, target, height, p0, v0, a0)
+                if result.status is not PlanStatus.NO_FEASIBLE:
+                    self.plans_extended += 1
+                    break
+            else:
+                # Nothing feasible even over 8x the horizon: fly the longest candidate (the gentlest)
+                # and let the controller clip its thrust and tilt, rather than fly out a stale plan that
+                # loses the platform (planning/README.md).
+                self.plans_clipped += 1
+                p_pred, v_pred, a_pred, _ = self._predict(estimator, target, longer[-1:])
+                pf = p_pred[0] + np.array([0.0, 0.0, height])
+                af = a_pred[0] if pcfg.end_constraint.name == "POS_VEL_ACC" else _ZERO3
+                T = float(longer[-1] - t)
+                plan = MinJerkTrajectory.from_boundary(t, T, p0, v0, a0, pf, v_pred[0], af)
+                self._plan = plan
+                self._traj = self._split_vertical(t, plan, p0, v0, a0)
+                self.planner.reset()
+                return
+        if result.trajectory is not None:
+            if result.trajectory is not self._plan:
+                self.plans_adopted += 1
+                self._plan = result.trajectory
+                self._traj = self._split_vertical(t, result.trajectory, p0, v0, a0)
+
+    def _split_vertical(
+        self, t: float, plan: MinJerkTrajectory, p0: FloatArray, v0: FloatArray, a0: FloatArray
+    ) -> MinJerkTrajectory | _SplitAxes:
+        """With ``intercept``, a plan longer than the climb to its end height gets its own height profile
+        (:class:`_SplitAxes`); otherwise the plan as it is (paper 000's behaviour)."""
+        if not self.config.intercept:
+            return plan
+        z_end = float(plan.sample(plan.t_end)[0][2])
+        T_z = max(2.0, 2.0 * abs(z_end - float(p0[2])) / self.config.cruise_speed_mps)
+        if plan.t_end - t <= T_z:
+            return plan
+        pf = np.array([p0[0], p0[1], z_end])
+        z = MinJerkTrajectory.from_boundary(t, T_z, p0, v0, a0, pf, _ZERO3, _ZERO3)
+        return _SplitAxes(plan, z)
+
+    @staticmethod
+    def _predict(
+        estimator: PlatformEstimator, target: PlatformEstimate, times: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        if estimator.initialized:
+            return estimator.predict_ahead(times)
+        # only a position so far: go there and look
+        p_pred = np.repeat(target.p_WP[None, :], times.size, axis=0)
+        return p_pred, np.zeros_like(p_pred), np.zeros_like(p_pred), np.zeros(times.size)
+
+    def _plan_to(
+        self,
+        t: float,
+        times: FloatArray,
+        estimator: PlatformEstimator,
+        target: PlatformEstimate,
+        height: float,
+        p0: FloatArray,
+        v0: FloatArray,
+        a0: FloatArray,
+    ) -> PlanResult:
+        p_pred, v_pred, a_pred, _ = self._predict(estimator, target, times)
+        p_end = p_pred + np.array([0.0, 0.0, height])
         floor_z = float(np.max(p_pred[:, 2])) + 0.5 * self.mission_config.track_height_m
         floor_z = min(floor_z, float(p0[2]) - 0.05, float(np.min(p_end[:, 2])) - 0.05)
-        result = self.planner.plan(t, p0, v0, a0, times, p_end, v_pred, floor_z=floor_z, a_end=a_pred)
-        if result.trajectory is not None:
-            if result.trajectory is not self._traj:
-                self.plans_adopted += 1
-            self._traj = result.trajectory
+        return self.planner.plan(t, p0, v0, a0, times, p_end, v_pred, floor_z=floor_z, a_end=a_pred)
+
+    def _horizon(self, t: float, ego: EgoState, estimator: PlatformEstimator) -> tuple[float, float]:
+        """The candidates' duration window (planning/envelope.py): from the distance to the intercept
+        point (with ``intercept``) or to the platform, and the airframe's horizontal acceleration."""
+        cfg, pcfg = self.config, self.planner.config
+        top = horizontal_speed_limit(cfg.max_tilt_rad, cfg.rotor_drag_per_s)
+        speed = min(cfg.max_speed_mps, cfg.speed_margin * top)
+        # horizontal acceleration: the tilt limit, and what the thrust limit leaves beside gravity
+        a_h = math.tan(cfg.max_tilt_rad) * _GRAVITY
+        if pcfg.f_max > _GRAVITY:
+            a_h = min(a_h, math.sqrt(pcfg.f_max**2 - _GRAVITY**2))
+        a_h *= cfg.speed_margin
+        grid = np.linspace(0.0, 60.0, 241)
+        p, _, _, _ = estimator.predict_ahead(t + grid)
+        # At the intercept speed from now on, no acceleration ramp: with a ramp (intercept_time's
+        # accel_mps2 at 2 / 5.77 of a_h, what a minimum-jerk move's bell-shaped speed allows) the meeting
+        # point lies so far ahead that the plan starts slowly and the vehicle falls 130 m behind a
+        # 12 m/s platform (seed 1: in contact after 44 s instead of 27 s); when [T, 1.1 T] is too short
+        # to be feasible the 'extend' rule doubles it.
+        t_int = intercept_time(ego.p_WB[:2], grid, p[:, :2], speed) if cfg.intercept else None
+        self.t_intercept_s = t_int
+        if t_int is not None:
+            k = min(int(np.searchsorted(grid, t_int)), grid.size - 1)
+            distance = float(np.hypot(*(p[k, :2] - ego.p_WB[:2])))
+        else:
+            distance = float(np.hypot(*(p[0, :2] - ego.p_WB[:2])))
+        return adaptive_horizon(distance, a_h, pcfg.horizon_min_s, pcfg.horizon_max_s, t_int)
 
     # ------------------------------------------------------------------------------------------------
     def reference(self, t: float, mode: Mode, target: PlatformEstimate | None) -> Reference:

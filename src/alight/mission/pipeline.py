@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from alight.estimation import EgoFed, PixelMeasured
+from alight.estimation import EgoFed, PixelMeasured, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
@@ -133,6 +133,8 @@ class PipelineStats:
     observations: int = 0
     measurements: int = 0
     rejected_measurements: int = 0
+    telemetry_fixes: int = 0
+    """Platform telemetry fixes received."""
     t_first_detection: float | None = None
     t_landing_start: float | None = None
     block_time_s: dict[str, float] = field(default_factory=lambda: dict.fromkeys(BLOCKS, 0.0))
@@ -254,6 +256,21 @@ class Pipeline:
         valid = [r for r in self._ranges if r is not None]
         self.range_m = max(valid) if len(valid) == len(self._ranges) else None
 
+    def on_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
+        """The platform's own GNSS fix, taken at ``t_stamp`` and arriving now (later): position (3,) m,
+        velocity (3,) m/s in W, the receiver's covariance (3, 3) m^2. The platform estimator fuses it
+        when it can (:class:`alight.estimation.TelemetryFusing`; the runner refuses telemetry for one that
+        cannot); True when used."""
+        est = self.platform_estimator
+        if not isinstance(est, TelemetryFusing):
+            return False
+        self.stats.telemetry_fixes += 1
+        t0 = time.perf_counter()
+        used = est.update_telemetry(t_stamp, p_WP, v_WP, cov)
+        self.stats.charge("platform_estimator", t0)
+        self._target = None
+        return used
+
     def on_image(
         self, t_capture: float, image: np.ndarray
     ) -> tuple[list[Observation], list[PlatformMeasurement]]:
@@ -315,6 +332,8 @@ class Pipeline:
             used = self.platform_estimator.update(measurement)
         self.stats.charge("platform_estimator", t0)
         if used:
+            if isinstance(self.platform_estimator, TelemetryFusing):
+                self.platform_estimator.learn_telemetry_bias(measurement)
             self.stats.measurements += 1
             if self.stats.t_first_detection is None:
                 self.stats.t_first_detection = t_capture
@@ -392,6 +411,7 @@ class Pipeline:
         self.last_reference = ref
         cmd = self.controller.command(ego, ref)
         self.stats.charge("controller", t0)
+        self.touchdown.observe_attitude(t, ego.q_WB)
         if self._detector_armed():
             cmd = self._touchdown_step(t, ego, target, cmd)
         return cmd

@@ -239,6 +239,12 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
             search_pattern=s.mission.search_pattern,
             aim_camera=s.mission.aim_camera,
+            intercept=s.mission.intercept,
+            adaptive_horizon=s.mission.adaptive_horizon,
+            no_feasible=s.mission.no_feasible,
+            max_platform_speed_mps=s.mission.max_platform_speed_mps,
+            max_tilt_rad=airframe.max_tilt_rad,
+            rotor_drag_per_s=airframe.rotor_drag[0],
             **(
                 {}
                 if s.mission.search_speed_uncertainty_mps is None

@@ -79,8 +79,18 @@ class TouchdownConfig:
     """On ground contact the attitude command is replaced by one that levels the vehicle at this rate per
     radian of tilt (1/s): as PX4 removes the horizontal thrust on ground contact, a vehicle that kept
     leaning into a turning deck's acceleration would push itself over one pair of feet."""
+    level_to: str = "vertical"
+    """What the attitude is levelled toward on ground contact: ``vertical`` (PX4), or ``steady``: the
+    thrust direction held on average over the last ``steady_tilt_time_constant_s`` before contact. On a
+    fast deck the vehicle leans into the rotor drag of its airspeed (20 deg at 12 m/s for the F450);
+    levelling it then brakes it against the deck, and after a bounce it falls behind the pad. The steady
+    tilt balances the steady forces (drag, wind) but not the manoeuvres."""
+    steady_tilt_time_constant_s: float = 1.0
+    """Low-pass time constant of the thrust direction for ``level_to: steady`` (s)."""
 
     def __post_init__(self) -> None:
+        if self.level_to not in ("vertical", "steady"):
+            raise ValueError(f"touchdown.level_to must be 'vertical' or 'steady', got {self.level_to!r}")
         for name in (
             "hover_thrust_N",
             "max_vertical_speed_mps",
@@ -94,6 +104,7 @@ class TouchdownConfig:
             "low_thrust_fraction",
             "landed_s",
             "level_gain_per_s",
+            "steady_tilt_time_constant_s",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
@@ -108,7 +119,25 @@ class TouchdownDetector:
 
     def __init__(self, config: TouchdownConfig | None = None) -> None:
         self.config = config or TouchdownConfig()
+        self._zb_lp: tuple[float, float, float] | None = None
+        self._t_att = -math.inf
         self.reset()
+
+    def observe_attitude(self, t: float, q_WB: FloatArray) -> None:
+        """The attitude while airborne, for ``level_to: steady`` (a low-pass of the body z axis in W);
+        nothing otherwise."""
+        if self.config.level_to != "steady" or self.state is not TouchdownState.AIRBORNE:
+            return
+        x, y, z, w = (float(v) for v in q_WB)
+        zb = (2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y))
+        dt = t - self._t_att
+        self._t_att = t
+        if self._zb_lp is None or not 0.0 < dt < 0.5:
+            self._zb_lp = zb
+            return
+        g = dt / (self.config.steady_tilt_time_constant_s + dt)
+        lp = self._zb_lp
+        self._zb_lp = (lp[0] + g * (zb[0] - lp[0]), lp[1] + g * (zb[1] - lp[1]), lp[2] + g * (zb[2] - lp[2]))
 
     def reset(self) -> None:
         """Back to ``AIRBORNE`` (a go-around, a new approach)."""
@@ -145,10 +174,19 @@ class TouchdownDetector:
         ``level_gain_per_s`` per radian, with no yaw rate: w_B = k e3 x (R^T e_z), i.e. k R^T (z_B x e_z).
         ``q_WB``: the attitude (x, y, z, w)."""
         x, y, z, w = (float(v) for v in q_WB)
+        k = self.config.level_gain_per_s
+        if self.config.level_to == "steady" and self._zb_lp is not None:
+            # the target direction e expressed in B: its dot products with the body x and y axes in W
+            n = math.sqrt(sum(c * c for c in self._zb_lp))
+            e = (self._zb_lp[0] / n, self._zb_lp[1] / n, self._zb_lp[2] / n)
+            xb = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+            yb = (2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x))
+            ex = xb[0] * e[0] + xb[1] * e[1] + xb[2] * e[2]
+            ey = yb[0] * e[0] + yb[1] * e[1] + yb[2] * e[2]
+            return np.array([-k * ey, k * ex, 0.0])
         # e_z expressed in B: the third row of R_WB
         ex = 2.0 * (x * z - w * y)
         ey = 2.0 * (y * z + w * x)
-        k = self.config.level_gain_per_s
         return np.array([-k * ey, k * ex, 0.0])
 
     def update(self, t: float, v_z_rel_mps: float, range_m: float | None, thrust_N: float) -> TouchdownState:
