@@ -623,7 +623,7 @@ class KimUkf:
         """Pixel updates run :func:`kim_pixel_step` (same arithmetic as the generic UKF, compiled)."""
         if self.use_compiled:
             # writable copies: numba compiles read-only arrays (the schemes' caches) as another type
-            self._U = np.array(self.scheme.unit_points(N_STATE), dtype=np.float64)  # type: ignore[attr-defined]
+            self._U = np.array(self.scheme.unit_points(N_STATE), dtype=np.float64)
             Wm, Wc = self.scheme.weights(N_STATE)
             self._Wm, self._Wc = np.array(Wm, dtype=np.float64), np.array(Wc, dtype=np.float64)
         self._info = np.zeros(1)

@@ -312,6 +312,8 @@ def run_mission(
         if cs.distractors is not None:
             distractors = DistractorSpec(**cs.distractors.model_dump())
         ground = make_ground_texture(cs.ground, rng_render, color=color, distractors=distractors)
+        if preset.camera is None or preset.pad is None:  # a camera preset builds both (presets.py)
+            raise RuntimeError(f"preset {preset.name} uses a camera but has no camera model or pad")
         renderer = Renderer(
             preset.camera,
             ground,
@@ -362,7 +364,7 @@ def run_mission(
     settle_reason = ""
     n_ticks = int(round(s.duration_s / TICK_DT))
     # The platform's path does not depend on the flight: its states at every tick, computed at once.
-    truths = platform.states(np.arange(n_ticks + 1) * TICK_DT)
+    truths = platform.states(np.arange(n_ticks + 1, dtype=np.float64) * TICK_DT)
     truth_p, truth_v = truths.p_WP, truths.v_WP
     windless = isinstance(wind, NoWind)
     f_wind = v_air = zero3
@@ -526,11 +528,11 @@ def run_mission(
             # A measurement farther from the pad's true centre than the pad's size (at its capture
             # time) comes from something else in the image: a false detection.
             k_cap = min(int(round(t_cap / TICK_DT)), n_ticks)
-            for m in measurements:
-                if math.dist(m.p_WP[0:2], truth_p[k_cap][0:2]) > pad:
+            for meas in measurements:
+                if math.dist(meas.p_WP[0:2], truth_p[k_cap][0:2]) > pad:
                     false_detections += 1
                 if log is not None:
-                    log.add_detection(m.t, m.p_WP)
+                    log.add_detection(meas.t, meas.p_WP)
 
         # -- decisions ----------------------------------------------------------------------------------
         if k % every_mission == 0:

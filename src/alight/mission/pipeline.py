@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from alight.estimation import EgoFed, PixelMeasured, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
@@ -81,13 +82,14 @@ class EgoHistory:
         v = np.array([np.interp(t, ts, self.v[order, k]) for k in range(3)])
         return CapturePose(pose[0], pose[1], v)
 
-    def _order(self) -> FloatArray:
+    def _order(self) -> NDArray[np.intp]:
         """Indices of the stored samples, oldest first: the ring is written in time order, so this is a
         rotation (an argsort here cost more than the interpolation)."""
         size = self.t.size
-        return (
+        order: NDArray[np.intp] = (
             (np.arange(self._i - self._n, self._i) % size) if self._n < size else np.roll(self._all, -self._i)
         )
+        return order
 
     def pose_at(self, t: float) -> tuple[FloatArray, FloatArray] | None:
         """(p_WB, R_WB) at time t, or None when t is outside the stored span by more than 50 ms."""

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from alight.airframe import Airframe
+from alight.cameras import CameraModel
 from alight.cameras.omni import OmniCamera
 from alight.cameras.pinhole import CameraMount, PinholeCamera
 from alight.control import Controller
@@ -32,6 +33,7 @@ from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
 from alight.mission.touchdown_detector import TouchdownConfig
+from alight.pads import PadDesign
 from alight.pads.apriltag_pad import AprilTagPad
 from alight.pads.falanga_tag import FalangaTag
 from alight.pads.red_target import RedTarget
@@ -66,9 +68,9 @@ class Preset:
     mount: CameraMount
     rate_gains: RateControllerGains
     uses_camera: bool
-    camera: PinholeCamera | OmniCamera | None = None
+    camera: CameraModel | None = None
     """The camera model the runner renders through (vision presets)."""
-    pad: object | None = None
+    pad: PadDesign | None = None
     """The pad design the runner draws on the platform (vision presets)."""
     color_camera: bool = False
     """The detector needs colour (BGR) images."""
