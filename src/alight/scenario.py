@@ -463,26 +463,28 @@ class RangeFinderSpec(_Strict):
 
 
 class MissionSpec(_Strict):
+    """Overrides of the mission logic's parameters (``alight.mission.state_machine.MissionConfig``, which
+    holds every default); None: the block's default, or the preset's where a preset sets one."""
+
     takeoff_altitude_m: Altitude | None = None
-    """Height of the take-off climb over the take-off point (m); None: the exploration altitude. Climbing
-    straight up first gives the camera its widest footprint over the take-off point within seconds,
-    before the pattern leaves it: a moving platform crossing the area is most often near it early (the
-    zamanakos_sdu straight-line misses of a 4 m take-off were all platforms that passed there while the
-    vehicle was still low and flying its first leg the other way)."""
-    explore_altitude_m: Altitude = 12.0
-    """Height of the search (m), at most 1000 (as every altitude and height)."""
-    track_height_m: Altitude = 2.5
+    """Height of the take-off climb over the take-off point (m; block default: the exploration
+    altitude)."""
+    explore_altitude_m: Altitude | None = None
+    """Height of the search (m, at most 1000 as every altitude and height; block default 12)."""
+    track_height_m: Altitude | None = None
+    """Height above the pad while tracking, before the descent (m; block default 2.5)."""
     land_speed_mps: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] | None = None
     """Descent speed of the landing ramp (m/s); None: the preset's (0.4, and paper 003's 0.1 for
     ``kim_kaist``)."""
-    land_commit_height_m: Altitude = 0.6
-    """Below this height above the pad a lost target no longer aborts the descent (m): the camera sees
-    the tag's cross down to about 0.3 m, but a moving pad may leave the view in the last half metre."""
-    lost_timeout_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] = 3.0
+    land_commit_height_m: Altitude | None = None
+    """Below this height above the pad a lost target no longer aborts the descent (m; block default 0.6)."""
+    lost_timeout_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] | None = None
     """Tracking coasts on the platform's prediction while the target is unseen this long, then searches
-    around the prediction (s)."""
-    max_go_arounds: Annotated[int, Field(ge=0, le=1000)] = 3
+    around the prediction (s; block default 3)."""
+    max_go_arounds: Annotated[int, Field(ge=0, le=1000)] | None = None
+    """Abort after this many go-arounds (block default 3)."""
     time_budget_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] | None = None
+    """Abort when the mission has run this long without landing (s); None: no budget."""
     # -- failsafes relative to the platform (None: the block's default, MissionConfig/GuidanceConfig;
     # docs/scenarios.md lists them) --
     takeoff_timeout_s: PositiveFloat | None = None

@@ -87,6 +87,13 @@ PRESETS: tuple[str, ...] = preset_names()
 
 
 _MISSION_OPTIONAL = (
+    "takeoff_altitude_m",
+    "explore_altitude_m",
+    "track_height_m",
+    "land_commit_height_m",
+    "lost_timeout_s",
+    "max_go_arounds",
+    "time_budget_s",
     "takeoff_timeout_s",
     "search_timeout_s",
     "max_target_losses",
@@ -112,14 +119,7 @@ def _mission_config(s: Any, eff: EffectiveBlocks, hover_thrust_N: float) -> Miss
     td = {k: v for k, v in m.touchdown.model_dump().items() if v is not None}
     optional = {k: getattr(m, k) for k in _MISSION_OPTIONAL if getattr(m, k) is not None}
     return MissionConfig(
-        takeoff_altitude_m=m.explore_altitude_m if m.takeoff_altitude_m is None else m.takeoff_altitude_m,
-        explore_altitude_m=m.explore_altitude_m,
-        track_height_m=m.track_height_m,
         land_speed_mps=land_speed if m.land_speed_mps is None else m.land_speed_mps,
-        land_commit_height_m=m.land_commit_height_m,
-        lost_timeout_s=m.lost_timeout_s,
-        max_go_arounds=m.max_go_arounds,
-        time_budget_s=m.time_budget_s,
         touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td),
         **optional,
     )

@@ -47,8 +47,12 @@ class MissionConfig:
     """Parameters of the mission logic. Heights are above the surface they refer to. These are the
     defaults of every preset (a scenario's ``mission:`` key left out or None keeps them)."""
 
-    takeoff_altitude_m: float = 4.0
-    """Hover height reached after take-off, above the take-off point (m)."""
+    takeoff_altitude_m: float | None = None
+    """Hover height reached after take-off, above the take-off point (m); None: the exploration altitude.
+    Climbing straight up first gives the camera its widest footprint over the take-off point within
+    seconds, before the pattern leaves it: a moving platform crossing the area is most often near it early
+    (the zamanakos_sdu straight-line misses of a 4 m take-off were all platforms that passed there while
+    the vehicle was still low and flying its first leg the other way)."""
     explore_altitude_m: float = 12.0
     """Altitude of the coverage pattern (m)."""
     track_height_m: float = 2.5
@@ -90,10 +94,11 @@ class MissionConfig:
     """... or the estimate's horizontal standard deviation exceeds this (m) ..."""
     land_hold_timeout_s: float = 3.0
     """... or the descent has held its height this long (s)."""
-    land_commit_height_m: float = 1.5
+    land_commit_height_m: float = 0.6
     """Below this height above the pad no gate stops the descent any more: it continues on the platform
-    estimator's prediction (a downward camera cannot see the whole pad from closer than about its own
-    size: paper 000's reason for the model-based filter) (m)."""
+    estimator's prediction (m). The camera sees the tag's cross down to about 0.3 m, but a moving pad may
+    leave the view in the last half metre (a downward camera cannot see the whole pad from closer than
+    about its own size: paper 000's reason for the model-based filter)."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -136,6 +141,8 @@ class MissionConfig:
         )
         for name in positive:
             value = getattr(self, name)
+            if value is None and name == "takeoff_altitude_m":
+                continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
         if self.max_go_arounds < 0 or self.max_target_losses < 0:
@@ -269,7 +276,9 @@ class Mission:
         return math.inf if target is None else t - target.t_last_measurement
 
     def hover_point_W(self) -> FloatArray:
-        p: FloatArray = self.takeoff_point_W + np.array([0.0, 0.0, self.config.takeoff_altitude_m])
+        c = self.config
+        height = c.explore_altitude_m if c.takeoff_altitude_m is None else c.takeoff_altitude_m
+        p: FloatArray = self.takeoff_point_W + np.array([0.0, 0.0, height])
         return p
 
     # -- the step ----------------------------------------------------------------------------------
