@@ -134,7 +134,8 @@ def test_offboard_rules_and_loss_failsafe_within_com_of_loss_t() -> None:
             time.sleep(0.02)
         # accepted once the stream has lasted > 1 s of simulated time (which may lag the wall clock on a
         # loaded machine, or while the compiled kernels load)
-        while (r := client.command(176, 1, 6, 0)) != mavlink.MAV_RESULT_ACCEPTED and time.monotonic() - t0 < 10:
+        accepted = mavlink.MAV_RESULT_ACCEPTED
+        while (r := client.command(176, 1, 6, 0)) != accepted and time.monotonic() - t0 < 10:
             assert r == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
             for _ in range(10):
                 client.hold_setpoint()
