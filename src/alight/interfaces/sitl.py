@@ -1,9 +1,25 @@
 """An emulated autopilot: alight's simulated world behind a MAVLink endpoint on loopback UDP.
 
-``alight sitl SCENARIO.yaml --port PORT`` runs the scenario's world (the same quadrotor, rate loop, wind,
-platform, sensors, renderer and touchdown judge as ``alight fly``, reused from ``alight.sim`` and
-``alight.evaluation``) and speaks MAVLink 2 like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter)
-flight controller would on its companion-computer link. ``alight bridge`` connects to it and flies.
+``alight sitl SCENARIO.yaml --port PORT`` runs the scenario's world (the same airframe, quadrotor with its
+contact model, rate loop, wind, platform, sensors, faults, renderer and outcome judging as ``alight fly``,
+reused from ``alight.sim`` and ``alight.evaluation``; :class:`SimWorld` says what is mirrored from the
+runner's loop) and speaks MAVLink 2 like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter) flight
+controller would on its companion-computer link. ``alight bridge`` connects to it and flies.
+
+The world and the verdict
+-------------------------
+The feet touch the moving deck and the ground through the simulator's spring-damper contact with
+friction; nothing in the world holds the vehicle up or stops its motors. The motors run while the
+emulated autopilot is armed, and stop when it disarms: on the companion's MAV_CMD_COMPONENT_ARM_DISARM
+(the bridge sends a forced disarm when its pipeline's land detector says landed), or after the
+emulator's own land detector in its LAND / PRECLAND modes (below). The verdict is the runner's: the
+first contact after take-off is judged (a crash ends the mission at once), a later touchdown after a
+bounce is judged again, and ``contact.settle_s`` after the motors stopped the vehicle must still stand
+on the pad (``landed``) or it ``crashed``; ``timeout`` when the motors never stopped. A land that the
+offboard-loss failsafe started may end on the ground: it scores ``aborted`` when it settles safely.
+Faults of the scenario act on what the emulator sends (IMU bias steps, odometry jumps and dropouts in
+ODOMETRY / LOCAL_POSITION_NED, range dropouts and spurious returns in DISTANCE_SENSOR, camera frame
+loss, blackouts, corruption and latency), drawn from the ninth child of the seed as in the runner.
 
 What it emulates
 ----------------
@@ -32,7 +48,13 @@ What it emulates
   HIGHRES_IMU 200 Hz (the simulator's IMU model), ATTITUDE_QUATERNION 50 Hz (true attitude, as an
   autopilot's EKF would give it), ODOMETRY and LOCAL_POSITION_NED 40 Hz (the VIO-like odometry model
   with noise and drift, in LOCAL_NED, velocity in the same frame), DISTANCE_SENSOR 100 Hz (the range
-  finder, downward, cm), EXTENDED_SYS_STATE 5 Hz, and answers to TIMESYNC requests.
+  finder, downward, cm, with the sensor's span in min/max_distance; out of range, see
+  :func:`distance_sensor_fields`), EXTENDED_SYS_STATE 5 Hz (on the ground before take-off, after its
+  land detector or a disarm after the flight), and answers to TIMESYNC requests.
+* A land detector in its LAND and PRECLAND modes (:meth:`EmulatedAutopilot._land_detector`): a descent
+  commanded, no vertical motion and the range finder at the floor for 0.5 s, then it disarms. In
+  OFFBOARD it leaves the decision to the companion (PX4 would idle the motors on a thrust of 0 and
+  disarm after its own land detector and ``COM_DISARM_LAND``; the emulator does not emulate that).
 * The camera: frames rendered exactly as ``alight fly`` renders them, stamped with their capture time on
   the simulated clock and delivered after the scenario's processing latency over
   :class:`alight.interfaces.camera_source.FrameServer` (loopback TCP, port ``PORT + 1`` by default).
