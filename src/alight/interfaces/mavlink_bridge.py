@@ -487,10 +487,16 @@ class MavlinkBridge:
         cfg = self.config
         if self.phase is Phase.LINK_LOST:
             return True
-        quiet_wall = time.monotonic() - self._t_heartbeat_wall
+        # Wall time counts only while nothing at all arrives: after a stall of the bridge's own (a kernel
+        # compiling, a loaded machine) the backlog is handled in order, and its IMU messages must not
+        # find the link lost before the HEARTBEAT queued behind them is read.
+        quiet_wall = time.monotonic() - max(self._t_heartbeat_wall, self._t_any_wall)
         quiet_ap = self.t_ap - self._t_heartbeat_ap if math.isfinite(self._t_heartbeat_ap) else 0.0
-        if quiet_ap > cfg.link_timeout_s or quiet_wall > max(cfg.link_timeout_s, 5.0):
-            self._go(Phase.LINK_LOST, f"no HEARTBEAT for {max(quiet_ap, quiet_wall):.1f} s")
+        if quiet_ap > cfg.link_timeout_s:
+            self._go(Phase.LINK_LOST, f"no HEARTBEAT for {quiet_ap:.1f} s of autopilot time")
+            return True
+        if quiet_wall > max(cfg.link_timeout_s, 5.0):
+            self._go(Phase.LINK_LOST, f"nothing received for {quiet_wall:.1f} s")
             return True
         return False
 

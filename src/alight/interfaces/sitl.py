@@ -91,6 +91,7 @@ needs a range finder, TIMESYNC-corrected target timestamps, and yaw alignment wi
 
 from __future__ import annotations
 
+import copy
 import enum
 import json
 import math
@@ -486,6 +487,27 @@ class SimWorld:
         self.last_range_m = math.inf  # the latest reading as the sensor reported it (faults applied)
         self._batch_xs = self._batch_imu = self._batch_touch = np.empty((0, 0))
         self._batch_i = self._batch_n = 0
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the kernels the first ticks, range readings and frames
+        call, without drawing a random number or changing any state (the IMU's noise rows are only
+        peeked, the renderer is a copy). The emulator does it before it waits for its companion: a
+        compile in the middle of the flight would silence its HEARTBEATs, and a companion takes 5 s of
+        silence as a lost link."""
+        bias, noise, scale = self.imu.kernel_inputs_many(self.every_control)
+        tick_batch(
+            self.x.copy(), self.inputs.copy(), self.sim_params, self.ll_params, bias.copy(), noise.copy(),
+            scale.copy(), PHYSICS_DT, self.n_sub, self.contact_params, self.every_control,
+            -math.inf, math.inf,
+        )  # fmt: skip
+        copy.deepcopy(self.rangefinder).measure_at(
+            self.x[SL_P], self.x[SL_Q], self.truths.p_WP[0], float(self.truths.yaw[0]),
+            self.scenario.platform.pad_size_m,
+        )  # fmt: skip
+        if self.renderer is not None:
+            p_WC, R_WC = camera_pose_W(self.x[SL_P], quat_to_rotmat(self.x[SL_Q]), self.mount)
+            pose = (self.truths.p_WP[0], float(self.truths.yaw[0]))
+            copy.deepcopy(self.renderer).render(p_WC, R_WC, pose, self.x[SL_W], t_s=0.0)
 
     @property
     def t(self) -> float:
@@ -1077,6 +1099,7 @@ class EmulatedAutopilot:
     def run(self) -> dict[str, Any]:
         """Serve until the mission ends; returns the verdict (also sent to the peer)."""
         cfg = self.config
+        self.world.warm_up()
         wall0 = time.monotonic()
         while not self.peer_seen:
             if time.monotonic() - wall0 > cfg.wait_for_peer_s:
