@@ -290,6 +290,7 @@ def test_silent_link_is_lost_on_the_wall_clock() -> None:
     fly(bridge, cap, cam, ap, 0.5)
     assert not bridge.link_lost()
     bridge._t_heartbeat_wall -= 5.0  # as if 5 s had passed without a byte
+    bridge._t_any_wall -= 5.0
     assert bridge.link_lost() and bridge.phase is Phase.LINK_LOST
     n = len(cap.messages)
     fly(bridge, cap, cam, ap, 1.0)  # even if traffic resumes, it stays stopped
