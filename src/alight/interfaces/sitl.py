@@ -1071,8 +1071,11 @@ class EmulatedAutopilot:
         lg["motor_N"].append(x[IX_F : IX_F + 4].copy())
 
     # -- the loop --------------------------------------------------------------------------------------
-    def _poll(self, timeout_s: float) -> None:
-        """Handle every message that arrives within ``timeout_s`` (at least those already queued)."""
+    def _poll(self, timeout_s: float, *, until_acked: bool = False) -> None:
+        """Handle every message that arrives within ``timeout_s`` (at least those already queued);
+        ``until_acked``: return as soon as the lockstep acknowledgement of the current time is handled
+        (checked right after the queued messages are handled: waiting in ``select`` for more data after
+        the acknowledgement arrived cost a whole ``timeout_s`` per control period)."""
         sock = self.conn.port
         deadline = time.monotonic() + timeout_s
         _ = self.frames.connected  # accept the camera client (it receives the scenario at once)
@@ -1086,12 +1089,12 @@ class EmulatedAutopilot:
                     break
                 if msg.get_type() != "BAD_DATA":
                     self.handle(msg)
+            if until_acked and self._wait_satisfied():
+                return
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return
             select.select([sock], [], [], remaining)
-            if timeout_s > 0 and self._wait_satisfied():
-                return
 
     def _wait_satisfied(self) -> bool:
         return self.peer_lockstep and self.ack_t >= self.world.t - 1e-6
@@ -1126,7 +1129,7 @@ class EmulatedAutopilot:
             if cfg.lockstep and self.peer_lockstep:
                 t_wait = time.monotonic()
                 while not self._wait_satisfied():
-                    self._poll(0.05)
+                    self._poll(0.05, until_acked=True)
                     if time.monotonic() - self._last_hb_wall > 0.5:
                         self._heartbeat()
                     if time.monotonic() - t_wait > cfg.lockstep_timeout_s:
