@@ -1042,11 +1042,11 @@ class EmulatedAutopilot:
             self.next_capture += 1.0 / w.scenario.perception.rate_hz
             stalled = self.config.camera_stall_after_s is not None and t >= self.config.camera_stall_after_s
             if not stalled:
-                image = w.render()
+                rendered = w.render()
                 # lost, dark, corrupted, frozen or as captured; delivered after the latency (+ faults)
-                image = None if image is None else w.faults.frame(t, image)
-                if image is not None:
-                    self.pending_frames.append((w.faults.delivery_time(t), t, image))  # type: ignore[arg-type]
+                image = None if rendered is None else w.faults.frame(t, rendered)
+                if isinstance(image, np.ndarray):
+                    self.pending_frames.append((w.faults.delivery_time(t), t, image))
         while self.pending_frames and self.pending_frames[0][0] <= t + 1e-9:
             _, t_cap, image = self.pending_frames.popleft()
             if self.frames.send_frame(t_cap, image):
