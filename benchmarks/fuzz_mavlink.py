@@ -8,8 +8,9 @@ of them starting with the MAVLink 2 magic 0xFD), valid messages with mutated fie
 extreme integers; the CRC recomputed by packing, so they pass the parser), truncated frames, a few ticks
 with their messages shuffled, messages with timestamps going backwards, and valid frames with flipped
 bits. Counts: exceptions that escape ``MavlinkBridge.feed_bytes`` (must be 0), non-finite numbers that
-reach the pipeline's ``on_imu`` / ``on_odometry`` / ``on_range`` (must be 0), and the longest time one
-buffer took (a hang shows there). Prints one JSON line.
+reach the pipeline's ``on_imu`` / ``on_odometry`` / ``on_range`` (must be 0; a range may be +-inf, the
+sensor's out-of-range readings, but never NaN), and the longest time one buffer took (a hang shows
+there). Prints one JSON line.
 """
 
 from __future__ import annotations
@@ -84,10 +85,16 @@ class _Spy:
             setattr(pipeline, name, self._wrap(getattr(pipeline, name)))
 
     def _wrap(self, fn: Any) -> Any:
+        # A range reading may be +-inf (out of range, ROS REP 117, as the sensor reports it); NaN never.
+        is_range = getattr(fn, "__name__", "") == "on_range"
+
         def spy(*args: Any) -> Any:
             self.calls += 1
             for a in args:
-                if a is not None and not np.all(np.isfinite(np.asarray(a, dtype=float))):
+                if a is None:
+                    continue
+                v = np.asarray(a, dtype=float)
+                if np.any(np.isnan(v)) if is_range else not np.all(np.isfinite(v)):
                     self.non_finite += 1
             return fn(*args)
 

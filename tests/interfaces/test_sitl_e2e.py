@@ -2,7 +2,8 @@
 
 Offboard (body rates + thrust) lands the falanga2017 straight-line mission (1.2 m/s) on three seeds, and in
 landing-target mode the emulated precision landing, fed only by alight's LANDING_TARGET messages, lands on
-a slow platform. All four pairs of processes run at once (lockstep: each pair keeps about one core busy)."""
+a slow platform. All four pairs of processes run at once (lockstep: each pair keeps about one core busy;
+about 20-40 s of wall time on a shared 2-core machine with a warm numba cache)."""
 
 from __future__ import annotations
 
@@ -55,7 +56,17 @@ def test_sitl_and_bridge_land(tmp_path: Path) -> None:
         assert result["touchdown_error_m"] < 0.55
         assert result["detections"] > 10 and result["bridge"]["lockstep"]
         assert result["bridge"]["rejected"] == {}  # nothing the emulator sent was refused
+        # judged as alight fly judges it: first contact, then still on the pad settle_s after the motors
+        # stopped; the motors stop only when the emulated autopilot disarms
+        assert result["outcome_reason"] == "" and result["bounces"] == 0
+        assert result["time_first_contact_s"] < result["time_motors_off_s"] < result["simulated_time_s"]
+        disarms = [e for e in result["sitl"]["events"] if e["event"] == "disarmed"]
+        assert len(disarms) == 1 and disarms[0]["t"] == pytest.approx(result["time_motors_off_s"], abs=0.011)
         if result["bridge"]["mode"] == "landing-target":
             assert result["bridge"]["landing_targets_sent"] > 10 and result["bridge"]["setpoints_sent"] == 0
+            assert disarms[0]["reason"] == "land detector"  # the emulator's own, in AUTO.PRECLAND
         else:
             assert result["bridge"]["setpoints_sent"] > 500
+            # the pipeline's land detector said landed; the bridge forced the disarm at that tick
+            assert disarms[0]["reason"] == "forced"
+            assert result["time_touchdown_onboard_s"] == pytest.approx(result["time_motors_off_s"], abs=0.011)

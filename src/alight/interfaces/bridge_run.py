@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 import alight
-from alight.airframe import DEFAULT_AIRFRAME
+from alight.airframes import load_airframe
 from alight.errors import ConfigError, InputError
 from alight.evaluation.log import MissionLog, save_arrays
 from alight.evaluation.mission_io import write_result
@@ -64,15 +64,22 @@ def run_bridge(
     emulator = isinstance(cam, SocketCameraSource)
     try:
         scenario = _scenario(cam, scenario_path)
-        seeds = np.random.SeedSequence(scenario.seed).spawn(8)
-        preset = build_preset(scenario, DEFAULT_AIRFRAME, np.random.default_rng(seeds[7]))
+        # the runner's seeding: nine children of the scenario's seed, the eighth for the pipeline
+        seeds = np.random.SeedSequence(scenario.seed).spawn(9)
+        airframe = load_airframe(scenario.airframe)
+        preset = build_preset(scenario, airframe, np.random.default_rng(seeds[7]))
         if not preset.uses_camera:
             raise ConfigError(
                 f"bridge: preset {scenario.preset!r} has no camera; the bridge needs a vision preset"
             )
         conn = open_link(connect)
         bridge = MavlinkBridge(
-            preset.pipeline, config, link=conn, camera=cam, planner_rate_hz=scenario.planner.rate_hz
+            preset.pipeline,
+            config,
+            link=conn,
+            camera=cam,
+            airframe=airframe,
+            planner_rate_hz=preset.planner_rate_hz,
         )
         try:
             _loop(bridge, conn, cam, emulator, max_wall_s)
@@ -189,6 +196,11 @@ def _outputs(
         "touchdown_tilt_deg": v.get("touchdown_tilt_deg"),
         "contact_surface": v.get("contact_surface"),
         "contact_reason": v.get("contact_reason"),
+        "outcome_reason": v.get("outcome_reason"),
+        "time_first_contact_s": v.get("time_first_contact_s"),
+        "time_touchdown_onboard_s": pipe.touchdown.t_landed,
+        "time_motors_off_s": v.get("time_motors_off_s"),
+        "bounces": v.get("bounces"),
         "time_first_detection_s": stats.t_first_detection,
         "time_landing_start_s": stats.t_landing_start,
         "time_to_land_s": v.get("time_to_land_s"),

@@ -50,6 +50,7 @@ from alight.errors import ConfigError, EstimationError  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import CameraSource  # noqa: E402
 from alight.mission.pipeline import Pipeline  # noqa: E402
+from alight.mission.touchdown_detector import TouchdownState  # noqa: E402
 from alight.types import FloatArray, Mode, quat_to_rotmat, yaw_of  # noqa: E402
 
 GRAVITY = 9.81
@@ -216,6 +217,7 @@ class MavlinkBridge:
         self.log_rows: list[dict[str, Any]] = []
         self._next_log = -math.inf
         self.hold_times: list[float] = []
+        self._disarm_sent = False
         self.frame_times: list[float] = []
 
     # -- bookkeeping -----------------------------------------------------------------------------------
@@ -399,10 +401,8 @@ class MavlinkBridge:
             self.stats.bad("DISTANCE_SENSOR")
             return
         self.stats.ok("DISTANCE_SENSOR")
-        cm, lo, hi = msg.current_distance, msg.min_distance, msg.max_distance
-        valid = cm != 65535 and lo <= cm <= hi and hi > 0
         if self.pipeline.ego_estimator.initialized:
-            self.pipeline.on_range(t, cm / 100.0 if valid else None)
+            self.pipeline.on_range(t, distance_sensor_range_m(msg))
 
     def _on_extended_sys_state(self, msg: Any) -> None:
         if msg.landed_state in (0, 1, 2, 3, 4):
@@ -487,10 +487,16 @@ class MavlinkBridge:
         cfg = self.config
         if self.phase is Phase.LINK_LOST:
             return True
-        quiet_wall = time.monotonic() - self._t_heartbeat_wall
+        # Wall time counts only while nothing at all arrives: after a stall of the bridge's own (a kernel
+        # compiling, a loaded machine) the backlog is handled in order, and its IMU messages must not
+        # find the link lost before the HEARTBEAT queued behind them is read.
+        quiet_wall = time.monotonic() - max(self._t_heartbeat_wall, self._t_any_wall)
         quiet_ap = self.t_ap - self._t_heartbeat_ap if math.isfinite(self._t_heartbeat_ap) else 0.0
-        if quiet_ap > cfg.link_timeout_s or quiet_wall > max(cfg.link_timeout_s, 5.0):
-            self._go(Phase.LINK_LOST, f"no HEARTBEAT for {max(quiet_ap, quiet_wall):.1f} s")
+        if quiet_ap > cfg.link_timeout_s:
+            self._go(Phase.LINK_LOST, f"no HEARTBEAT for {quiet_ap:.1f} s of autopilot time")
+            return True
+        if quiet_wall > max(cfg.link_timeout_s, 5.0):
+            self._go(Phase.LINK_LOST, f"nothing received for {quiet_wall:.1f} s")
             return True
         return False
 
@@ -566,12 +572,9 @@ class MavlinkBridge:
         if not self._custom_mode_is(PX4_OFFBOARD if cfg.autopilot == "px4" else AP_GUIDED):
             self._go(Phase.RELEASED, "the autopilot left offboard (failsafe or pilot)")
             return
-        if pipe.status.mode is Mode.LANDED:
-            if self.ap_armed and self._retry(t, 0.5):
-                self._command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0, float(FORCE_DISARM))
-            if not self.ap_armed:
-                self._go(Phase.DONE, "landed and disarmed")
-                return
+        if self._touched_down():
+            self._motors_off(t)
+            return
         stalled = t - self._frame_t > cfg.camera_timeout_s or t - self._odo_t > cfg.ego_timeout_s
         if stalled:
             if not self.holding:
@@ -588,6 +591,9 @@ class MavlinkBridge:
             self._next_step = max(self._next_step + self._step_dt, t + 0.5 * self._step_dt - 1e-9)
             pipe.step(t)
         cmd = pipe.command(t)
+        if cmd.motors_off and self._touched_down():
+            self._motors_off(t)
+            return
         if self._suppressed(t):
             return
         if cfg.setpoint == "rates" or cmd.motors_off:
@@ -608,6 +614,37 @@ class MavlinkBridge:
             )  # fmt: skip
         self.stats.setpoints_sent += 1
         self._last_cmd_t = t
+
+    def _touched_down(self) -> bool:
+        """The pipeline's land detector decided the touchdown (or its mission says landed): from now on
+        its command is ``motors_off``."""
+        pipe = self.pipeline
+        return pipe.status.mode is Mode.LANDED or pipe.touchdown.state is TouchdownState.LANDED
+
+    def _motors_off(self, t: float) -> None:
+        """The pipeline stopped its motors after touchdown: tell the autopilot. What PX4 users do after an
+        offboard landing is disarm (MAV_CMD_COMPONENT_ARM_DISARM param1 = 0): a thrust of 0 in OFFBOARD
+        only idles the motors (PX4 keeps them spinning at idle while armed), and PX4's own land detector,
+        which would disarm by itself after ``COM_DISARM_LAND``, does not know the deck moves. The bridge
+        forces it (param2 = 21196: PX4 refuses a plain disarm until its land detector agrees), resent
+        every 0.5 s until the HEARTBEAT shows the vehicle disarmed, and meanwhile keeps the offboard
+        stream alive with zero thrust and zero rates, so no offboard-loss failsafe takes over."""
+        if not self.ap_armed and self._disarm_sent:
+            self._go(Phase.DONE, "landed and disarmed")
+            return
+        if self._suppressed(t):
+            return
+        self.mav.set_attitude_target_send(
+            int(round(t * 1e3)), self.target_sys or 1, self.target_comp or 0, MASK_RATES_THRUST,
+            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.0,
+        )  # fmt: skip
+        self.stats.setpoints_sent += 1
+        self._last_cmd_t = t
+        if self.ap_armed and self._retry(t, 0.5, "disarm"):
+            if not self._disarm_sent:
+                self._event("motors_off", reason="the pipeline's land detector")
+            self._command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0, float(FORCE_DISARM))
+            self._disarm_sent = True
 
     def _suppressed(self, t: float) -> bool:
         stop = self.config.stop_setpoints_after_s
@@ -712,6 +749,21 @@ class MavlinkBridge:
 
     def send_heartbeat(self) -> None:
         self.mav.heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+
+def distance_sensor_range_m(msg: Any) -> float:
+    """A DISTANCE_SENSOR reading (m) as the pipeline takes it, the range finder's ROS REP 117 convention:
+    ``-inf`` closer than the sensor's minimum (``current_distance`` below ``min_distance``), ``+inf`` beyond
+    its maximum or without a return (above ``max_distance``, UINT16_MAX); with ``signal_quality`` 1
+    ("invalid signal") a reading at or below the minimum is ``-inf`` and any other ``+inf``. The emulated
+    autopilot encodes its sensor's +-inf this way (``alight.interfaces.sitl.distance_sensor_fields``)."""
+    cm, lo, hi = int(msg.current_distance), int(msg.min_distance), int(msg.max_distance)
+    invalid = getattr(msg, "signal_quality", 0) == 1
+    if cm == 65535 or cm > hi or (invalid and cm > lo):
+        return math.inf
+    if cm < lo or invalid:
+        return -math.inf
+    return cm / 100.0
 
 
 def cam_clock_is_companion(camera: CameraSource | None) -> bool:

@@ -1,9 +1,25 @@
 """An emulated autopilot: alight's simulated world behind a MAVLink endpoint on loopback UDP.
 
-``alight sitl SCENARIO.yaml --port PORT`` runs the scenario's world (the same quadrotor, rate loop, wind,
-platform, sensors, renderer and touchdown judge as ``alight fly``, reused from ``alight.sim`` and
-``alight.evaluation``) and speaks MAVLink 2 like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter)
-flight controller would on its companion-computer link. ``alight bridge`` connects to it and flies.
+``alight sitl SCENARIO.yaml --port PORT`` runs the scenario's world (the same airframe, quadrotor with its
+contact model, rate loop, wind, platform, sensors, faults, renderer and outcome judging as ``alight fly``,
+reused from ``alight.sim`` and ``alight.evaluation``; :class:`SimWorld` says what is mirrored from the
+runner's loop) and speaks MAVLink 2 like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter) flight
+controller would on its companion-computer link. ``alight bridge`` connects to it and flies.
+
+The world and the verdict
+-------------------------
+The feet touch the moving deck and the ground through the simulator's spring-damper contact with
+friction; nothing in the world holds the vehicle up or stops its motors. The motors run while the
+emulated autopilot is armed, and stop when it disarms: on the companion's MAV_CMD_COMPONENT_ARM_DISARM
+(the bridge sends a forced disarm when its pipeline's land detector says landed), or after the
+emulator's own land detector in its LAND / PRECLAND modes (below). The verdict is the runner's: the
+first contact after take-off is judged (a crash ends the mission at once), a later touchdown after a
+bounce is judged again, and ``contact.settle_s`` after the motors stopped the vehicle must still stand
+on the pad (``landed``) or it ``crashed``; ``timeout`` when the motors never stopped. A land that the
+offboard-loss failsafe started may end on the ground: it scores ``aborted`` when it settles safely.
+Faults of the scenario act on what the emulator sends (IMU bias steps, odometry jumps and dropouts in
+ODOMETRY / LOCAL_POSITION_NED, range dropouts and spurious returns in DISTANCE_SENSOR, camera frame
+loss, blackouts, corruption and latency), drawn from the ninth child of the seed as in the runner.
 
 What it emulates
 ----------------
@@ -32,7 +48,13 @@ What it emulates
   HIGHRES_IMU 200 Hz (the simulator's IMU model), ATTITUDE_QUATERNION 50 Hz (true attitude, as an
   autopilot's EKF would give it), ODOMETRY and LOCAL_POSITION_NED 40 Hz (the VIO-like odometry model
   with noise and drift, in LOCAL_NED, velocity in the same frame), DISTANCE_SENSOR 100 Hz (the range
-  finder, downward, cm), EXTENDED_SYS_STATE 5 Hz, and answers to TIMESYNC requests.
+  finder, downward, cm, with the sensor's span in min/max_distance; out of range, see
+  :func:`distance_sensor_fields`), EXTENDED_SYS_STATE 5 Hz (on the ground before take-off, after its
+  land detector or a disarm after the flight), and answers to TIMESYNC requests.
+* A land detector in its LAND and PRECLAND modes (:meth:`EmulatedAutopilot._land_detector`): a descent
+  commanded, no vertical motion and the range finder at the floor for 0.5 s, then it disarms. In
+  OFFBOARD it leaves the decision to the companion (PX4 would idle the motors on a thrust of 0 and
+  disarm after its own land detector and ``COM_DISARM_LAND``; the emulator does not emulate that).
 * The camera: frames rendered exactly as ``alight fly`` renders them, stamped with their capture time on
   the simulated clock and delivered after the scenario's processing latency over
   :class:`alight.interfaces.camera_source.FrameServer` (loopback TCP, port ``PORT + 1`` by default).
@@ -69,6 +91,7 @@ needs a range finder, TIMESYNC-corrected target timestamps, and yaw alignment wi
 
 from __future__ import annotations
 
+import copy
 import enum
 import json
 import math
@@ -87,36 +110,53 @@ from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
 
 import alight  # noqa: E402
-from alight.airframe import DEFAULT_AIRFRAME, Airframe  # noqa: E402
+from alight.airframe import Airframe  # noqa: E402
+from alight.airframes import load_airframe  # noqa: E402
 from alight.cameras.pinhole import camera_pose_W  # noqa: E402
 from alight.control.rate import pack_low_level_params  # noqa: E402
 from alight.energy import flight_energy_J  # noqa: E402
 from alight.errors import ConfigError, InputError  # noqa: E402
 from alight.evaluation.physics import (  # noqa: E402
+    IN_DECK,
     IN_F_EXT,
     IN_MOTORS_ON,
-    IN_SUPPORT_V,
-    IN_SUPPORT_Z,
-    IN_SUPPORTED,
     IN_THRUST,
     IN_V_WIND,
     IN_W_CMD,
     N_IN,
     tick_batch,
 )
-from alight.evaluation.runner import PHYSICS_DT, POST_CONTACT_S, TICK_DT, _place_platform, _wind  # noqa: E402
+from alight.evaluation.runner import LIFT_OFF_M, PHYSICS_DT, TICK_DT, _place_platform, _wind  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, encode_message  # noqa: E402
 from alight.mission.presets import build_preset  # noqa: E402
 from alight.pads import PadDesign  # noqa: E402
 from alight.scenario import Scenario  # noqa: E402
-from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W, initial_state, pack_params  # noqa: E402
+from alight.sim.faults import Faults  # noqa: E402
+from alight.sim.quadrotor import (  # noqa: E402
+    CP_K,
+    DK_A,
+    DK_HALF,
+    DK_ON,
+    DK_P,
+    DK_V,
+    DK_YAW,
+    DK_YAW_RATE,
+    IX_F,
+    SL_P,
+    SL_Q,
+    SL_V,
+    SL_W,
+    initial_state,
+    pack_contact_params,
+    pack_params,
+)
 from alight.sim.render import Renderer, RenderOptions  # noqa: E402
 from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig  # noqa: E402
 from alight.sim.textures import DistractorSpec, make_ground_texture  # noqa: E402
-from alight.sim.touchdown import Contact, ContactLimits, judge_contact  # noqa: E402
+from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled  # noqa: E402
 from alight.sim.wind import NoWind  # noqa: E402
-from alight.types import FloatArray, Outcome, quat_to_rotmat, yaw_of  # noqa: E402
+from alight.types import EgoState, FloatArray, Outcome, quat_to_rotmat, yaw_of  # noqa: E402
 
 CONTROL_DT = 0.01  # the autopilot's position loop and the lockstep period (s)
 GRAVITY = 9.81
@@ -220,6 +260,12 @@ class SitlConfig:
     precland_descent_mps: float = 0.5
     precland_accept_m: float = 0.3
     precland_lost_s: float = 1.5
+    land_detect_s: float = 0.5
+    """The emulator's land detector (LAND / PRECLAND): the landed condition must hold this long (s)."""
+    land_max_vz_mps: float = 0.25
+    """... with |v_z| below this (m/s; PX4's LNDMC_Z_VEL_MAX) ..."""
+    land_range_m: float = 0.3
+    """... and the range finder below this (m) or inside its blind zone."""
     takeoff_height_m: float = 2.5
     """Height of a take-off without a MAV_CMD_NAV_TAKEOFF height (PX4's MIS_TAKEOFF_ALT default)."""
     camera_stall_after_s: float | None = None
@@ -246,6 +292,28 @@ class Setpoint:
     v: FloatArray | None = None
     a: FloatArray | None = None
     yaw: float | None = None
+
+
+DISTANCE_SIGNAL_INVALID = 1  # DISTANCE_SENSOR signal_quality: 0 unknown, 1 invalid signal, 100 perfect
+
+
+def distance_sensor_fields(range_m: float, config: RangeFinderConfig) -> tuple[int, int, int, int]:
+    """DISTANCE_SENSOR ``min_distance``, ``max_distance``, ``current_distance`` (cm) and
+    ``signal_quality`` for a reading as the simulated sensor reports it (ROS REP 117: ``-inf`` inside its
+    blind zone, ``+inf`` beyond its range or without a return).
+
+    common.xml defines no value for an out-of-range reading; the message carries the sensor's span, and a
+    reading outside [``min_distance``, ``max_distance``] is the convention receivers use (ArduPilot's
+    "out of range low / high", PX4's validity test). So ``-inf`` is sent as ``min_distance - 1`` and
+    ``+inf`` as ``max_distance + 1``, both with ``signal_quality`` 1 ("invalid signal"); a valid reading
+    is clipped into the span (its noise may cross an edge) with ``signal_quality`` 0 ("unknown")."""
+    lo = int(min(max(round(config.min_range_m * 100.0), 0), 65533))
+    hi = int(min(max(round(config.max_range_m * 100.0), lo + 1), 65534))
+    if math.isfinite(range_m):
+        return lo, hi, int(min(max(round(range_m * 100.0), lo), hi)), 0
+    if range_m < 0:
+        return lo, hi, max(lo - 1, 0), DISTANCE_SIGNAL_INVALID
+    return lo, hi, hi + 1, DISTANCE_SIGNAL_INVALID
 
 
 def position_control(
@@ -294,21 +362,49 @@ def position_control(
 
 class SimWorld:
     """The simulated world of a scenario, stepped one 200 Hz tick at a time with the autopilot's
-    collective thrust and body-rate command; the same models and seeding as ``run_mission``."""
+    collective thrust and body-rate command; the same models, seeding and contact judging as
+    ``run_mission``.
 
-    def __init__(self, scenario: Scenario, airframe: Airframe = DEFAULT_AIRFRAME) -> None:
+    ``run_mission``'s loop body is one function that also drives the pipeline, so it cannot be called
+    from here: this class mirrors it (the physics batches with the contact parameters and the deck
+    inputs, the first-contact and bounce bookkeeping, the settling judgement) and imports every piece
+    that is a function (``_place_platform``, ``_wind``, ``judge_contact``, ``judge_settled``, the
+    constants). A change to the runner's world step must be made here too.
+
+    Nothing here stops the motors: they run while :meth:`set_command` says so (the emulated autopilot
+    is armed); the outcome is judged like the runner's, the first contact when it happens and the rest
+    ``contact.settle_s`` after the motors stopped in the air (``t_motors_off``)."""
+
+    def __init__(self, scenario: Scenario, airframe: Airframe | None = None) -> None:
         s = scenario
+        if airframe is None:
+            airframe = load_airframe(s.airframe)
         self.scenario = s
         self.airframe = airframe
-        seeds = np.random.SeedSequence(s.seed).spawn(8)
-        rngs = [np.random.default_rng(c) for c in seeds]
+        # The runner's nine children of the seed: eight components, the ninth for the faults.
+        seeds = np.random.SeedSequence(s.seed).spawn(9)
+        rngs = [np.random.default_rng(c) for c in seeds[:8]]
         rng_place, rng_render, rng_wind, rng_imu, rng_odo, rng_range, _rng_perc, rng_pipe = rngs
         self.platform = _place_platform(s, rng_place)
-        self.wind = _wind(s, rng_wind)
+        self.wind = _wind(s, rng_wind, airframe)
         self.imu = Imu(ImuConfig(), rng_imu)
         self.odometry = Odometry(OdometryConfig(), rng_odo)
+        rf = s.rangefinder
         self.rangefinder = RangeFinder(
-            RangeFinderConfig(origin_B=(0.0, 0.0, -airframe.gear_height)), rng_range
+            RangeFinderConfig(
+                origin_B=(0.0, 0.0, -airframe.gear_height),
+                min_range_m=rf.min_range_m,
+                max_range_m=rf.max_range_m,
+                noise_std_m=rf.noise_m,
+            ),
+            rng_range,
+        )
+        self.contact_params = pack_contact_params(
+            airframe,
+            stiffness_N_per_m=s.contact.stiffness_N_per_m,
+            damping_Ns_per_m=s.contact.damping_Ns_per_m,
+            friction=s.contact.friction,
+            gear_half_width_m=s.contact.gear_half_width_m,
         )
         self.limits = ContactLimits(
             gear_half_width=s.contact.gear_half_width_m,
@@ -320,6 +416,16 @@ class SimWorld:
         # is not used here (the companion runs its own).
         preset = build_preset(s, airframe, rng_pipe)
         self.mount = preset.mount
+        self.faults = Faults(
+            s.faults,
+            seeds[8],
+            camera=preset.uses_camera,
+            latency_s=s.perception.latency_s,
+            extra_dropout_prob=s.perception.dropout_prob,
+            range_span_m=(rf.min_range_m, rf.max_range_m),
+            tick_dt=TICK_DT,
+        )
+        self.faults.check_preset(s.preset, preset.uses_camera)
         self.renderer: Renderer | None = None
         if preset.uses_camera and preset.camera is not None and isinstance(preset.pad, PadDesign):
             cs = s.camera
@@ -345,18 +451,63 @@ class SimWorld:
             )
         self.sim_params = pack_params(airframe)
         self.ll_params = pack_low_level_params(airframe, preset.rate_gains)
-        self.x = initial_state(np.array([0.0, 0.0, airframe.gear_height]), yaw=0.0)
+        gear = airframe.gear_height
+        # standing on the ground, the feet compressed by the weight (as the runner starts)
+        self.x = initial_state(
+            np.array([0.0, 0.0, gear - airframe.weight_N / (4 * self.contact_params[CP_K])])
+        )
+        self.x_prev = self.x
         self.inputs = np.zeros(N_IN)
-        self.inputs[IN_SUPPORTED] = 1.0
+        self.inputs[IN_DECK + DK_ON] = 1.0
+        self.inputs[IN_DECK + DK_HALF] = 0.5 * s.platform.pad_size_m
         self.n_sub = round(TICK_DT / PHYSICS_DT)
+        self.every_control = round(CONTROL_DT / TICK_DT)
         self.n_ticks = int(round(s.duration_s / TICK_DT))
         self.truths = self.platform.states(np.arange(self.n_ticks + 1, dtype=np.float64) * TICK_DT)
         self.k = 0
         self.airborne = False
-        self.contact: Contact | None = None
+        self.motors_on = False
+        self.contact: Contact | None = None  # the first contact after take-off, judged from the truth
         self.t_contact: float | None = None
-        self.low_z = s.platform.pad_height_m + 0.01 + airframe.gear_height
+        self.t_motors_off: float | None = None  # the motors stopped in the air or after touching down
+        self.outcome: Outcome | None = None
+        self.outcome_reason = ""
+        self.ground_ok = False
+        """Set by the autopilot: a ground contact is the safe end of its descent (a failsafe land), and
+        a safe settling scores ``aborted`` (the runner's abort landing)."""
+        self.touching = False
+        self.touch_z = 0.0
+        self.bounces = 0
+        self.on_deck = 0
+        self.on_ground = 0
+        # the lowest a foot can be below the body origin (tilted 25 deg with the feet 0.2 m out), plus 1 cm
+        reach = gear + s.contact.gear_half_width_m * 0.5 + 0.01
+        self.low_z = s.platform.pad_height_m + reach
         self.f_wind = np.zeros(3)
+        self.last_range_m = math.inf  # the latest reading as the sensor reported it (faults applied)
+        self._batch_xs = self._batch_imu = self._batch_touch = np.empty((0, 0))
+        self._batch_i = self._batch_n = 0
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the kernels the first ticks, range readings and frames
+        call, without drawing a random number or changing any state (the IMU's noise rows are only
+        peeked, the renderer is a copy). The emulator does it before it waits for its companion: a
+        compile in the middle of the flight would silence its HEARTBEATs, and a companion takes 5 s of
+        silence as a lost link."""
+        bias, noise, scale = self.imu.kernel_inputs_many(self.every_control)
+        tick_batch(
+            self.x.copy(), self.inputs.copy(), self.sim_params, self.ll_params, bias.copy(), noise.copy(),
+            scale.copy(), PHYSICS_DT, self.n_sub, self.contact_params, self.every_control,
+            -math.inf, math.inf,
+        )  # fmt: skip
+        copy.deepcopy(self.rangefinder).measure_at(
+            self.x[SL_P], self.x[SL_Q], self.truths.p_WP[0], float(self.truths.yaw[0]),
+            self.scenario.platform.pad_size_m,
+        )  # fmt: skip
+        if self.renderer is not None:
+            p_WC, R_WC = camera_pose_W(self.x[SL_P], quat_to_rotmat(self.x[SL_Q]), self.mount)
+            pose = (self.truths.p_WP[0], float(self.truths.yaw[0]))
+            copy.deepcopy(self.renderer).render(p_WC, R_WC, pose, self.x[SL_W], t_s=0.0)
 
     @property
     def t(self) -> float:
@@ -364,61 +515,121 @@ class SimWorld:
 
     @property
     def done(self) -> bool:
-        c = self.contact
-        if c is not None and (
-            c.outcome is not Outcome.LANDED or self.t - (self.t_contact or 0.0) >= POST_CONTACT_S
-        ):
-            return True
-        return self.k >= self.n_ticks
+        return self.outcome is not None or self.k >= self.n_ticks
+
+    @property
+    def final_outcome(self) -> Outcome:
+        """The verdict: the judged one, or ``timeout`` (the motors never stopped, or the settling time
+        ran past the end), as the runner scores it."""
+        return Outcome.TIMEOUT if self.outcome is None else self.outcome
 
     def set_command(self, thrust_N: float, w_cmd_B: FloatArray, motors_on: bool) -> None:
-        if self.contact is not None:  # after touchdown the land detector has cut the motors
-            motors_on = False
+        """The autopilot's command; it acts from the next physics batch on (batches end at the 10 ms
+        control ticks, where the emulated autopilot commands, as the runner's controller does)."""
         self.inputs[IN_THRUST] = thrust_N
         self.inputs[IN_W_CMD : IN_W_CMD + 3] = w_cmd_B
         self.inputs[IN_MOTORS_ON] = 1.0 if motors_on else 0.0
+        self.motors_on = motors_on
+        if self.airborne and not motors_on and self.t_motors_off is None:
+            self.t_motors_off = self.t  # judge once the vehicle has settled
 
-    def tick(self) -> FloatArray:
-        """Advance one tick; returns the IMU sample (specific force, rate; FLU) at the new time."""
-        x, inputs, gear = self.x, self.inputs, self.airframe.gear_height
+    def _physics_batch(self) -> None:
+        # The runner's batch: up to the next control tick, cut short where a first contact is to be
+        # judged or a bias step is due; wind and deck stamped at the batch's start.
+        x, inputs, k = self.x, self.inputs, self.k
+        tr = self.truths
         if not isinstance(self.wind, NoWind):
             self.f_wind = self.wind.force_W(self.t, x[SL_P], x[SL_V])
             inputs[IN_F_EXT : IN_F_EXT + 3] = self.f_wind
             inputs[IN_V_WIND : IN_V_WIND + 3] = self.wind.air_velocity_W(self.t)
-        bias, noise, scale = self.imu.kernel_inputs_many(1)
-        xs, imus, n = tick_batch(
-            x, inputs, self.sim_params, self.ll_params, bias, noise, scale, PHYSICS_DT, self.n_sub, gear, 1,
-            -math.inf, math.inf,
+        inputs[IN_DECK + DK_P : IN_DECK + DK_P + 3] = tr.p_WP[k]
+        inputs[IN_DECK + DK_V : IN_DECK + DK_V + 3] = tr.v_WP[k]
+        inputs[IN_DECK + DK_A : IN_DECK + DK_A + 3] = tr.a_WP[k]
+        inputs[IN_DECK + DK_YAW] = tr.yaw[k]
+        inputs[IN_DECK + DK_YAW_RATE] = tr.yaw_rate[k]
+        m = min(self.every_control - k % self.every_control, self.n_ticks - k)
+        m = self.faults.before_imu_batch(k + 1, m, self.imu)
+        bias, noise, scale = self.imu.kernel_inputs_many(m)
+        gear = self.airframe.gear_height
+        self._batch_xs, self._batch_imu, self._batch_touch, self._batch_n = tick_batch(
+            x, inputs, self.sim_params, self.ll_params, bias, noise, scale, PHYSICS_DT, self.n_sub,
+            self.contact_params, m, self.low_z if self.airborne and self.contact is None else -math.inf,
+            math.inf if self.airborne else gear + 0.05,
         )  # fmt: skip
-        self.imu.used(n)
-        self.x = xs[0]
+        self.imu.used(self._batch_n)
+        self._batch_i = 0
+
+    def tick(self) -> FloatArray:
+        """Advance one tick; returns the IMU sample (specific force, rate; FLU) at the new time. Judges
+        the contact as the runner does and sets ``outcome`` when the mission's end is decided."""
+        if self._batch_i >= self._batch_n:
+            self._physics_batch()
+        i = self._batch_i
+        self.x_prev = self.x
+        self.x = x = self._batch_xs[i]
+        sample: FloatArray = self._batch_imu[i]
+        self.on_deck, self.on_ground = int(self._batch_touch[i, 0]), int(self._batch_touch[i, 1])
+        self._batch_i += 1
         self.k += 1
-        p = self.x[SL_P]
-        if not self.airborne and p[2] - gear > 0.05:
+        k, t = self.k, self.t
+        gear = self.airframe.gear_height
+        pad = self.scenario.platform.pad_size_m
+        p_WB = x[SL_P]
+        on_deck, on_ground = self.on_deck, self.on_ground
+        if not self.airborne and p_WB[2] - gear > 0.05:
             self.airborne = True
-            inputs[IN_SUPPORTED] = 0.0
-        if self.airborne and self.contact is None and p[2] <= self.low_z:
-            truth = self.truths.at(self.k)
-            R = quat_to_rotmat(self.x[SL_Q])
-            pad = self.scenario.platform.pad_size_m
-            self.contact = judge_contact(p, self.x[SL_V], R, truth, pad, gear, self.limits)
-            if self.contact is not None:
-                self.t_contact = self.t
-        if self.contact is not None and self.contact.outcome is Outcome.LANDED:
-            truth = self.truths.at(self.k)
-            inputs[IN_SUPPORTED] = 1.0
-            inputs[IN_SUPPORT_Z] = float(truth.p_WP[2])
-            inputs[IN_SUPPORT_V : IN_SUPPORT_V + 3] = truth.v_WP
-            inputs[IN_MOTORS_ON] = 0.0
-        sample: FloatArray = imus[0]
+        ground_ok = self.ground_ok
+        if self.airborne and (on_deck or on_ground or self.touching):
+            truth = self.truths.at(k)
+            if on_deck or on_ground:
+                surface = "ground" if on_ground and not on_deck else "pad"
+                if not self.touching:
+                    self.touching = True
+                    self.touch_z = 0.0 if surface == "ground" else float(truth.p_WP[2])
+                    judged = judge_contact(
+                        p_WB, self.x_prev[SL_V], quat_to_rotmat(self.x_prev[SL_Q]), truth, pad, gear,
+                        self.limits, surface=surface, ground_ok=ground_ok,
+                    )  # fmt: skip
+                    if judged is not None:
+                        if self.contact is None:
+                            self.contact, self.t_contact = judged, t
+                        if judged.outcome is Outcome.CRASHED:
+                            self.outcome, self.outcome_reason = Outcome.CRASHED, judged.reason
+                            if self.contact is not judged:
+                                self.outcome_reason = f"after a bounce: {judged.reason}"
+                            return sample
+                elif on_ground and not ground_ok:
+                    self.outcome, self.outcome_reason = Outcome.CRASHED, "ground"  # slid or tipped off
+                    return sample
+            elif p_WB[2] - gear - self.touch_z > LIFT_OFF_M:
+                self.touching = False
+                self.bounces += 1
+        if self.t_motors_off is not None and t - self.t_motors_off >= self.scenario.contact.settle_s:
+            settled, self.outcome_reason = judge_settled(
+                p_WB, quat_to_rotmat(x[SL_Q]), self.truths.at(k), pad, self.limits, on_deck, on_ground,
+                ground_ok=ground_ok,
+            )  # fmt: skip
+            if settled is Outcome.CRASHED:
+                self.outcome = Outcome.CRASHED
+            else:
+                self.outcome = Outcome.ABORTED if ground_ok else Outcome.LANDED
         return sample
 
+    def odometry_message(self) -> EgoState | None:
+        """The odometry model's message now, as delivered (odometry faults applied; None: withheld)."""
+        x = self.x
+        return self.faults.odometry(self.odometry.measure(self.t, x[SL_P], x[SL_V], x[SL_Q], x[SL_W]))
+
     def range_m(self) -> float:
+        """A range-finder reading now, as the sensor reports it (``-inf`` in its blind zone, ``+inf``
+        beyond its range or without a return; range faults applied). Draws from the sensor's noise."""
         k = self.k
-        return self.rangefinder.measure_at(
+        r = self.rangefinder.measure_at(
             self.x[SL_P], self.x[SL_Q], self.truths.p_WP[k], float(self.truths.yaw[k]),
             self.scenario.platform.pad_size_m,
         )  # fmt: skip
+        self.last_range_m = self.faults.range(self.t, r)
+        return self.last_range_m
 
     def render(self) -> np.ndarray | None:
         if self.renderer is None:
@@ -432,12 +643,12 @@ class SimWorld:
 class EmulatedAutopilot:
     """The MAVLink endpoint and the autopilot's logic around a :class:`SimWorld`."""
 
-    def __init__(self, scenario: Scenario, config: SitlConfig, airframe: Airframe = DEFAULT_AIRFRAME) -> None:
+    def __init__(self, scenario: Scenario, config: SitlConfig, airframe: Airframe | None = None) -> None:
         if config.flavour not in ("px4", "ardupilot"):
             raise ConfigError(f"sitl: flavour must be px4 or ardupilot, got {config.flavour!r}")
         self.config = config
         self.world = SimWorld(scenario, airframe)
-        self.airframe = airframe
+        self.airframe = self.world.airframe
         try:
             self.conn = mavutil.mavlink_connection(
                 f"udpin:{config.host}:{config.port}",
@@ -481,6 +692,9 @@ class EmulatedAutopilot:
         self.log: dict[str, list[Any]] = {k: [] for k in channels}
         self.thrust_N = 0.0
         self.w_cmd = np.zeros(3)
+        self._land_detected = False  # the emulator's land detector (LAND / PRECLAND) said landed
+        self._land_since: float | None = None
+        self._descending = False  # LAND / PRECLAND commanded a descent this control period
 
     # -- events and messages ----------------------------------------------------------------------------
     def _event(self, kind: str, **info: Any) -> None:
@@ -505,7 +719,51 @@ class EmulatedAutopilot:
         if mode in (FlightMode.HOLD, FlightMode.LAND, FlightMode.PRECLAND, FlightMode.TAKEOFF):
             self.hold_yaw = yaw_of(quat_to_rotmat(self.world.x[SL_Q]))
             self.hold_p = p.copy()
+        # a failsafe's land ends wherever the vehicle is: touching the ground is its safe end (aborted)
+        self.world.ground_ok = mode is FlightMode.LAND and why == "offboard loss"
         self._event("mode", mode=mode.value, reason=why)
+
+    @property
+    def landed(self) -> bool:
+        """What the emulated autopilot believes (EXTENDED_SYS_STATE): on the ground before take-off,
+        after its land detector said landed, or disarmed after a flight; in the air otherwise."""
+        w = self.world
+        return not w.airborne or self._land_detected or (not self.armed and w.t_motors_off is not None)
+
+    def _disarm(self, why: str) -> None:
+        """Disarm: the motors stop at the next physics batch (the world judges the settling from then)."""
+        if self.armed:
+            self.armed = False
+            self._event("disarmed", reason=why)
+            self.world.set_command(0.0, np.zeros(3), False)
+            self.thrust_N, self.w_cmd = 0.0, np.zeros(3)
+
+    def _land_detector(self, t: float) -> None:
+        """The emulator's land detector, in its own LAND and PRECLAND modes (PX4 disarms after its land
+        detector says landed; ArduCopter's LAND disarms on touchdown too): landed when, for
+        ``land_detect_s``, a descent is commanded but the vehicle does not move vertically
+        (|v_z| < ``land_max_vz_mps``, its estimate taken as the truth) and the downward range finder
+        sees a surface under the feet (its latest reading below ``land_range_m``, or inside its blind
+        zone: ``-inf``). Then it disarms at once (PX4 idles the motors ``COM_DISARM_LAND`` first; the
+        emulator does not)."""
+        cfg = self.config
+        landing = self.mode in (FlightMode.LAND, FlightMode.PRECLAND)
+        if not (self.armed and self.world.airborne and landing):
+            self._land_since = None
+            return
+        r = self.world.last_range_m
+        near = r == -math.inf or (math.isfinite(r) and r < cfg.land_range_m)
+        still = abs(float(self.world.x[SL_V][2])) < cfg.land_max_vz_mps
+        if not (self._descending and near and still):
+            self._land_since = None
+            return
+        if self._land_since is None:
+            self._land_since = t
+        if t - self._land_since >= cfg.land_detect_s:
+            self._land_detected = True
+            self._event("land_detected", mode=self.mode.value)
+            self._statustext("Landing detected")
+            self._disarm("land detector")
 
     def _stream_alive(self, t: float) -> bool:
         return self.setpoint is not None and t - self.setpoint.t <= self.config.loss_s
@@ -597,7 +855,7 @@ class EmulatedAutopilot:
         cmd, t = msg.command, self.world.t
         if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
             if msg.param1 == 1.0:
-                if self.world.contact is not None:
+                if self.world.t_motors_off is not None or self.world.done:  # one flight per mission
                     self._ack(cmd, mavlink.MAV_RESULT_DENIED)
                     return
                 if self.mode is FlightMode.OFFBOARD and self._px4 and not self._stream_alive(t):
@@ -607,12 +865,12 @@ class EmulatedAutopilot:
                 self.hold_p = self.world.x[SL_P].copy()
                 self._event("armed")
             elif msg.param1 == 0.0:
-                on_ground = not self.world.airborne or self.world.contact is not None
+                # PX4 refuses a disarm unless its land detector says landed, or the disarm is forced
+                on_ground = not self.world.airborne or self.landed
                 if not on_ground and int(msg.param2) != FORCE_DISARM:
                     self._ack(cmd, mavlink.MAV_RESULT_DENIED)
                     return
-                self.armed = False
-                self._event("disarmed")
+                self._disarm("forced" if int(msg.param2) == FORCE_DISARM else "commanded")
             else:
                 self._ack(cmd, mavlink.MAV_RESULT_DENIED)
                 return
@@ -664,7 +922,7 @@ class EmulatedAutopilot:
                 self.hold_yaw = yaw_of(R)
                 self._event("guided_timeout", last_setpoint_t=self.setpoint.t if self.setpoint else None)
             self._guided_stopped = guided_stopped
-        elif self.mode is FlightMode.OFFBOARD and not self._stream_alive(t):
+        elif self.mode is FlightMode.OFFBOARD and self.armed and not self._stream_alive(t):
             self._statustext(f"Offboard lost: failsafe {self.config.failsafe}", mavlink.MAV_SEVERITY_WARNING)
             self._event(
                 "failsafe",
@@ -674,6 +932,8 @@ class EmulatedAutopilot:
             self._set_mode(
                 FlightMode.LAND if self.config.failsafe == "land" else FlightMode.HOLD, "offboard loss"
             )
+        self._land_detector(t)
+        self._descending = False
         if not self.armed:
             self.world.set_command(0.0, np.zeros(3), False)
             self.thrust_N, self.w_cmd = 0.0, np.zeros(3)
@@ -714,6 +974,7 @@ class EmulatedAutopilot:
                         descent = self.config.precland_descent_mps
                 p_ref = np.array([xy[0], xy[1], p[2]])
                 v_ref = np.array([v_xy[0], v_xy[1], -descent])
+                self._descending = descent > 0.0
             # (land: p_ref's height is the current one, so the vertical is a pure rate of descent)
             thrust, w = position_control(
                 p, v, R, p_ref=p_ref, v_ref=v_ref, a_ref=a_ref, yaw_ref=yaw, airframe=self.airframe
@@ -734,8 +995,8 @@ class EmulatedAutopilot:
             q = frames.q_WB_to_mavlink(x[SL_Q])
             rates = frames.flu_to_frd(x[SL_W])
             mav.attitude_quaternion_send(t_ms, *q, *rates)
-        if k % 5 == 0:  # 40 Hz
-            odo = w.odometry.measure(t, x[SL_P], x[SL_V], x[SL_Q], x[SL_W])
+        odo = w.odometry_message() if k % 5 == 0 else None  # 40 Hz, odometry faults applied
+        if odo is not None:
             p, v = frames.enu_to_ned(odo.p_WB), frames.enu_to_ned(odo.v_WB)
             q = frames.q_WB_to_mavlink(odo.q_WB)
             rates = frames.flu_to_frd(x[SL_W])
@@ -746,19 +1007,12 @@ class EmulatedAutopilot:
                 nan21, nan21, 0, mavlink.MAV_ESTIMATOR_TYPE_VIO, 100,
             )  # fmt: skip
         if k % 2 == 0:  # 100 Hz
-            r = w.range_m()
-            if math.isfinite(r):
-                cm = int(min(max(round(r * 100.0), 0), 65534))
-            else:
-                cm = 0 if r < 0 else 65535  # below the minimum reads 0; no return is UINT16_MAX
-            mav.distance_sensor_send(t_ms, 0, 1400, cm, mavlink.MAV_DISTANCE_SENSOR_LASER, 0,
-                                     mavlink.MAV_SENSOR_ROTATION_PITCH_270, 0)  # fmt: skip
+            lo, hi, cm, quality = distance_sensor_fields(w.range_m(), w.rangefinder.config)
+            mav.distance_sensor_send(t_ms, lo, hi, cm, mavlink.MAV_DISTANCE_SENSOR_LASER, 0,
+                                     mavlink.MAV_SENSOR_ROTATION_PITCH_270, 255, 0.0, 0.0, [0.0] * 4,
+                                     quality)  # fmt: skip
         if k % 40 == 0:  # 5 Hz
-            landed = (
-                mavlink.MAV_LANDED_STATE_IN_AIR
-                if w.airborne and w.contact is None
-                else mavlink.MAV_LANDED_STATE_ON_GROUND
-            )
+            landed = mavlink.MAV_LANDED_STATE_ON_GROUND if self.landed else mavlink.MAV_LANDED_STATE_IN_AIR
             mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, landed)
 
     def _heartbeat(self) -> None:
@@ -784,14 +1038,15 @@ class EmulatedAutopilot:
         if w.renderer is None:
             return
         t = w.t
-        latency = w.scenario.perception.latency_s
         if t + 1e-9 >= self.next_capture:
             self.next_capture += 1.0 / w.scenario.perception.rate_hz
             stalled = self.config.camera_stall_after_s is not None and t >= self.config.camera_stall_after_s
             if not stalled:
-                image = w.render()
-                if image is not None:
-                    self.pending_frames.append((t + latency, t, image))
+                rendered = w.render()
+                # lost, dark, corrupted, frozen or as captured; delivered after the latency (+ faults)
+                image = None if rendered is None else w.faults.frame(t, rendered)
+                if isinstance(image, np.ndarray):
+                    self.pending_frames.append((w.faults.delivery_time(t), t, image))
         while self.pending_frames and self.pending_frames[0][0] <= t + 1e-9:
             _, t_cap, image = self.pending_frames.popleft()
             if self.frames.send_frame(t_cap, image):
@@ -816,8 +1071,11 @@ class EmulatedAutopilot:
         lg["motor_N"].append(x[IX_F : IX_F + 4].copy())
 
     # -- the loop --------------------------------------------------------------------------------------
-    def _poll(self, timeout_s: float) -> None:
-        """Handle every message that arrives within ``timeout_s`` (at least those already queued)."""
+    def _poll(self, timeout_s: float, *, until_acked: bool = False) -> None:
+        """Handle every message that arrives within ``timeout_s`` (at least those already queued);
+        ``until_acked``: return as soon as the lockstep acknowledgement of the current time is handled
+        (checked right after the queued messages are handled: waiting in ``select`` for more data after
+        the acknowledgement arrived cost a whole ``timeout_s`` per control period)."""
         sock = self.conn.port
         deadline = time.monotonic() + timeout_s
         _ = self.frames.connected  # accept the camera client (it receives the scenario at once)
@@ -831,12 +1089,12 @@ class EmulatedAutopilot:
                     break
                 if msg.get_type() != "BAD_DATA":
                     self.handle(msg)
+            if until_acked and self._wait_satisfied():
+                return
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return
             select.select([sock], [], [], remaining)
-            if timeout_s > 0 and self._wait_satisfied():
-                return
 
     def _wait_satisfied(self) -> bool:
         return self.peer_lockstep and self.ack_t >= self.world.t - 1e-6
@@ -844,6 +1102,7 @@ class EmulatedAutopilot:
     def run(self) -> dict[str, Any]:
         """Serve until the mission ends; returns the verdict (also sent to the peer)."""
         cfg = self.config
+        self.world.warm_up()
         wall0 = time.monotonic()
         while not self.peer_seen:
             if time.monotonic() - wall0 > cfg.wait_for_peer_s:
@@ -870,7 +1129,7 @@ class EmulatedAutopilot:
             if cfg.lockstep and self.peer_lockstep:
                 t_wait = time.monotonic()
                 while not self._wait_satisfied():
-                    self._poll(0.05)
+                    self._poll(0.05, until_acked=True)
                     if time.monotonic() - self._last_hb_wall > 0.5:
                         self._heartbeat()
                     if time.monotonic() - t_wait > cfg.lockstep_timeout_s:
@@ -887,7 +1146,7 @@ class EmulatedAutopilot:
     def _finish(self, wall_s: float) -> dict[str, Any]:
         w = self.world
         c = w.contact
-        outcome = c.outcome if c is not None else Outcome.TIMEOUT
+        outcome = w.final_outcome
         motor_t = np.array(self.motor_t)
         energy = flight_energy_J(motor_t, np.array(self.motor_N)) if motor_t.size > 1 else None
         s = w.scenario
@@ -904,6 +1163,10 @@ class EmulatedAutopilot:
             "touchdown_tilt_deg": None if c is None else math.degrees(c.tilt_rad),
             "contact_surface": None if c is None else c.surface,
             "contact_reason": None if c is None else c.reason,
+            "outcome_reason": w.outcome_reason,
+            "time_first_contact_s": w.t_contact,
+            "time_motors_off_s": w.t_motors_off,
+            "bounces": w.bounces,
             "time_to_land_s": w.t_contact if outcome is Outcome.LANDED else None,
             "energy_flight_J": energy,
             "simulated_time_s": w.t,
@@ -923,9 +1186,10 @@ class EmulatedAutopilot:
         self.conn.close()
 
 
-def serve(scenario: Scenario, config: SitlConfig, airframe: Airframe = DEFAULT_AIRFRAME) -> dict[str, Any]:
+def serve(scenario: Scenario, config: SitlConfig, airframe: Airframe | None = None) -> dict[str, Any]:
     """Run the emulated autopilot for one mission: wait for a companion, fly, send it the verdict and the
-    ground-truth log on the camera stream, and return the verdict."""
+    ground-truth log on the camera stream, and return the verdict. ``airframe``: None flies the
+    scenario's ``airframe:``."""
     ap = EmulatedAutopilot(scenario, config, airframe)
     try:
         result = ap.run()
