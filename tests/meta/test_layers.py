@@ -36,7 +36,8 @@ ALLOWED: dict[str, set[str]] = {
     # the scenario validates its blocks against the registry (alight.mission.blocks) and its airframe
     "scenario": {"errors", "mission", "airframes"},
     "evaluation": _MODELS | _STAGES | {"sim", "scenario", "__init__"},
-    "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "__init__"},
+    # the bridge compiles the pipeline's kernels (warmup) before it takes the link
+    "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "warmup", "__init__"},
     # compiles the numba kernels before a worker reports ready, by flying short missions
     "warmup": {"scenario", "mission", "evaluation"},
     "campaign": {"types", "errors", "scenario", "mission", "evaluation", "warmup", "__init__"},

@@ -72,6 +72,12 @@ def run_bridge(
             raise ConfigError(
                 f"bridge: preset {scenario.preset!r} has no camera; the bridge needs a vision preset"
             )
+        # Compile the pipeline's numba kernels before taking the link: a first compile takes tens of
+        # seconds on a fresh install, during which a companion would not answer the autopilot (a lost
+        # offboard stream) or, in lockstep with the emulator, would let its world run on without us.
+        from alight.warmup import warm_up
+
+        warm_up([scenario.preset])
         conn = open_link(connect)
         bridge = MavlinkBridge(
             preset.pipeline,
