@@ -81,6 +81,14 @@ _XYZ = ("x", "y", "z")
 _XYZW = ("x", "y", "z", "w")
 
 
+def log_channel(log: Mapping[str, np.ndarray], name: str, width: int) -> NDArray[np.float64]:
+    """Channel ``name`` of a finalised mission log as an (N, width) float64 array, all NaN when the log
+    does not have it (a channel a preset never fills); N is the length of ``log["t"]``."""
+    n = np.asarray(log["t"]).shape[0]
+    a = log.get(name)
+    return np.full((n, width), np.nan) if a is None else np.asarray(a, dtype=np.float64).reshape(n, width)
+
+
 def column_names(name: str, width: int) -> list[str]:
     """CSV column names of a channel: ``p_WB -> p_WB_x, p_WB_y, p_WB_z``; a quaternion ``q_WB -> q_WB_x,
     q_WB_y, q_WB_z, q_WB_w``; ``motor_N -> motor_N_0 ..``."""

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from alight.errors import ReplayError
+from alight.evaluation.log import log_channel
 from alight.types import Observation
 
 MCAP_FILE = "flight.mcap"
@@ -246,12 +247,7 @@ class McapExporter:
         n = t.shape[0]
 
         def ch(name: str, width: int) -> NDArray[np.float64]:
-            a = log.get(name)
-            return (
-                np.full((n, width), np.nan)
-                if a is None
-                else np.asarray(a, dtype=np.float64).reshape(n, width)
-            )
+            return log_channel(log, name, width)
 
         p_WB, q_WB, p_est, q_est = ch("p_WB", 3), ch("q_WB", 4), ch("p_WB_est", 3), ch("q_WB_est", 4)
         p_WP, v_WP, p_WP_est, v_WP_est = ch("p_WP", 3), ch("v_WP", 3), ch("p_WP_est", 3), ch("v_WP_est", 3)

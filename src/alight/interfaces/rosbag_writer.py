@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from alight.errors import ReplayError
+from alight.evaluation.log import log_channel
 from alight.types import Observation, quat_to_rotmat
 
 IMAGE_TOPIC = "/alight/camera/image_raw"
@@ -173,12 +174,7 @@ class BagRecorder:
         n = t.shape[0]
 
         def ch(name: str, width: int) -> NDArray[np.float64]:
-            a = log.get(name)
-            return (
-                np.full((n, width), np.nan)
-                if a is None
-                else np.asarray(a, dtype=np.float64).reshape(n, width)
-            )
+            return log_channel(log, name, width)
 
         p_WB, v_WB, q_WB = ch("p_WB", 3), ch("v_WB", 3), ch("q_WB", 4)
         p_est, v_est, q_est = ch("p_WB_est", 3), ch("v_WB_est", 3), ch("q_WB_est", 4)
