@@ -1,7 +1,10 @@
 """The measured combination table of docs/blocks_measured.md, from a run of examples/campaigns/blocks.yaml.
 
     alight campaign examples/campaigns/blocks.yaml --out runs/blocks
-    python tools/blocks_table.py runs/blocks > docs/blocks_measured.md
+    python tools/blocks_table.py runs/blocks [--replicates N] > docs/blocks_measured.md
+
+``--replicates N`` counts only the first N seeds of every combination (for a campaign stopped part way:
+the campaign flies seed by seed across all combinations, so the first seeds are complete everywhere).
 
 One row per block combination (camera-pad-detector-geolocator-platform_estimator, the block set's name):
 landed / flown, median and worst touchdown error of the landed missions, and the outcomes that were not
@@ -21,14 +24,20 @@ STAGES = ("camera", "pad", "detector", "geolocator", "platform_estimator")
 
 
 def main(argv: list[str]) -> int:
+    replicates: int | None = None
+    if len(argv) == 3 and argv[1] == "--replicates" and argv[2].isdigit():
+        replicates = int(argv[2])
+        argv = argv[:1]
     if len(argv) != 1:
-        print("usage: python tools/blocks_table.py RUN_DIR", file=sys.stderr)
+        print("usage: python tools/blocks_table.py RUN_DIR [--replicates N]", file=sys.stderr)
         return 2
     path = Path(argv[0]) / "results.csv"
     if not path.is_file():
         print(f"{path}: no such file (run the campaign first)", file=sys.stderr)
         return 2
     rows = list(csv.DictReader(path.open(encoding="utf-8")))
+    if replicates is not None:
+        rows = [r for r in rows if int(r["replicate"]) < replicates]
     by_combo: dict[str, list[dict[str, str]]] = defaultdict(list)
     for r in rows:
         by_combo[r["preset"]].append(r)
@@ -38,12 +47,14 @@ def main(argv: list[str]) -> int:
         "",
         "Every compatible combination of camera × (pad, detector) × geolocator × platform estimator in",
         "[blocks.md](blocks.md), on falanga2017's controller, planner and mission, flying a 2 m/s circle,",
-        "5 seeds each (the same seeds for every combination):",
+        "on the same seeds for every combination:",
         "",
         "    alight campaign examples/campaigns/blocks.yaml --out runs/blocks",
         "    python tools/blocks_table.py runs/blocks > docs/blocks_measured.md",
         "",
-        f"{len(rows)} missions recorded over {len(by_combo)} combinations.",
+        f"{len(rows)} missions over {len(by_combo)} combinations"
+        + ("" if replicates is None else f" (the first {replicates} seeds of each)")
+        + ".",
         "",
         "| camera-pad-detector-geolocator-estimator | landed / flown | median error (m) | max error (m) | "
         "other outcomes |",
