@@ -9,12 +9,15 @@ the campaign flies seed by seed across all combinations, so the first seeds are 
 One row per block combination (camera-pad-detector-geolocator-platform_estimator, the block set's name):
 landed / flown, median and worst touchdown error of the landed missions, and the outcomes that were not
 landings; then, per stage, each block's landings over every combination it is in, which is where a
-reader sees which choice matters.
+reader sees which choice matters; then how the missions that did not land ended (from each mission's
+``result.json``: the outcome, the mode it ended in, the abort reason, whether any detection became a pad measurement),
+per block.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import statistics
 import sys
 from collections import Counter, defaultdict
@@ -81,8 +84,44 @@ def main(argv: list[str]) -> int:
             for name, v in sorted(per_stage[stage].items())
         ]
         out.append(f"- {stage}: " + "; ".join(parts))
+    out += failure_modes(Path(argv[0]), rows)
     print("\n".join(out))
     return 0
+
+
+def failure_mode(result: dict[str, object]) -> str:
+    """How a mission that did not land ended, in a few words."""
+    outcome, mode = result.get("outcome"), result.get("final_mode")
+    if outcome == "error":
+        return "error"
+    if not result.get("detections"):
+        return f"{outcome} in {mode}, no pad measurement"
+    reason = result.get("abort_reason")
+    if reason:
+        return f"{outcome}: {reason}"
+    return f"{outcome} in {mode}"
+
+
+def failure_modes(run_dir: Path, rows: list[dict[str, str]]) -> list[str]:
+    """Per stage and block, the commonest ways its missions failed to land."""
+    per_block: dict[tuple[str, str], Counter[str]] = defaultdict(Counter)
+    for r in rows:
+        if r["outcome"] == "landed":
+            continue
+        result_path = run_dir / r["mission_dir"] / "result.json" if r.get("mission_dir") else None
+        if result_path is not None and result_path.is_file():
+            mode = failure_mode(json.loads(result_path.read_text(encoding="utf-8")))
+        else:
+            mode = f"{r['outcome']} (no result.json)"
+        for stage, name in zip(STAGES, r["preset"].split("-"), strict=False):
+            per_block[(stage, name)][mode] += 1
+    out = ["", "## How the others ended", "", "The missions that did not land, by how they ended:", ""]
+    for stage, name in sorted(per_block):
+        modes = per_block[(stage, name)]
+        parts = [f"{mode} {n}" for mode, n in modes.most_common(4)]
+        rest = sum(modes.values()) - sum(n for _, n in modes.most_common(4))
+        out.append(f"- {stage} `{name}`: " + "; ".join(parts) + (f"; other {rest}" if rest else ""))
+    return out
 
 
 if __name__ == "__main__":
