@@ -10,8 +10,8 @@ One row per block combination (camera-pad-detector-geolocator-platform_estimator
 landed / flown, median and worst touchdown error of the landed missions, and the outcomes that were not
 landings; then, per stage, each block's landings over every combination it is in, which is where a
 reader sees which choice matters; then how the missions that did not land ended (from each mission's
-``result.json``: the outcome, the mode it ended in, the abort reason, whether any detection became a pad measurement),
-per block.
+``result.json``: the outcome, the mode it ended in, the abort reason, whether any detection became a
+pad measurement), per block.
 """
 
 from __future__ import annotations
