@@ -328,7 +328,7 @@ class World:
         self.k = 0
         self.t = 0.0
         self.airborne = False
-        self.motors_on = False
+        self.motors_on = bool(self.inputs[IN_MOTORS_ON])  # what the physics reads: off until commanded
         self.contact: Contact | None = None  # the first contact after take-off, judged from the truth
         self.t_contact: float | None = None
         self.t_motors_off: float | None = None  # the motors stopped in the air or after touching down
