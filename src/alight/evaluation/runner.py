@@ -206,14 +206,7 @@ def run_mission(
                 motor_N=x[IX_F : IX_F + 4],
             )
 
-    outcome = world.final_outcome  # timeout: the motors never stopped (or the settling ran past the end)
-    settle_reason = world.outcome_reason
-    contact, t_contact, t_motors_off, bounces = (
-        world.contact,
-        world.t_contact,
-        world.t_motors_off,
-        world.bounces,
-    )
+    contact, t_contact = world.contact, world.t_contact
     wall = time.perf_counter() - wall0
     arrays = log.finalize() if log is not None else None
     stats = pipeline.stats
@@ -235,23 +228,10 @@ def run_mission(
         "scenario": s.model_dump(mode="json"),
         "seed": s.seed,
         "preset": s.preset,
-        "outcome": outcome.value,
-        "success": outcome is Outcome.LANDED,
-        "touchdown_error_m": None if contact is None else contact.touchdown_error_m,
-        "touchdown_rel_speed_mps": None if contact is None else contact.rel_speed_mps,
-        "touchdown_rel_vertical_speed_mps": None if contact is None else contact.rel_vertical_speed_mps,
-        "touchdown_rel_horizontal_speed_mps": None if contact is None else contact.rel_horizontal_speed_mps,
-        "touchdown_tilt_deg": None if contact is None else math.degrees(contact.tilt_rad),
-        "contact_surface": None if contact is None else contact.surface,
-        "contact_reason": None if contact is None else contact.reason,
-        "outcome_reason": settle_reason,
-        "time_first_contact_s": t_contact,
+        **world.verdict(),
         "time_touchdown_onboard_s": pipeline.touchdown.t_landed,
-        "time_motors_off_s": t_motors_off,
-        "bounces": bounces,
         "time_first_detection_s": stats.t_first_detection,
         "time_landing_start_s": stats.t_landing_start,
-        "time_to_land_s": t_contact if outcome is Outcome.LANDED else None,
         "energy_flight_J": energy,
         "energy_compute_J": compute_J,
         "frames_processed": getattr(pipeline.detector, "frames_processed", stats.frames),

@@ -29,7 +29,7 @@ import copy
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -384,6 +384,28 @@ class World:
         self.motors_on = motors_on
         if self.airborne and not motors_on and self.t_motors_off is None:
             self.t_motors_off = self.t  # judge once the vehicle has settled
+
+    def verdict(self) -> dict[str, Any]:
+        """The judged part of a mission's result (``evaluation/result.py`` documents each column): the
+        outcome and why, the first contact's error, speeds and tilt, when it touched and when the motors
+        stopped, the bounces."""
+        c, outcome = self.contact, self.final_outcome
+        return {
+            "outcome": outcome.value,
+            "success": outcome is Outcome.LANDED,
+            "touchdown_error_m": None if c is None else c.touchdown_error_m,
+            "touchdown_rel_speed_mps": None if c is None else c.rel_speed_mps,
+            "touchdown_rel_vertical_speed_mps": None if c is None else c.rel_vertical_speed_mps,
+            "touchdown_rel_horizontal_speed_mps": None if c is None else c.rel_horizontal_speed_mps,
+            "touchdown_tilt_deg": None if c is None else math.degrees(c.tilt_rad),
+            "contact_surface": None if c is None else c.surface,
+            "contact_reason": None if c is None else c.reason,
+            "outcome_reason": self.outcome_reason,
+            "time_first_contact_s": self.t_contact,
+            "time_motors_off_s": self.t_motors_off,
+            "bounces": self.bounces,
+            "time_to_land_s": self.t_contact if outcome is Outcome.LANDED else None,
+        }
 
     def end(self, outcome: Outcome, reason: str = "") -> None:
         """Decide the mission's end from the flying side (an abort's hover that held)."""

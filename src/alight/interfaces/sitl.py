@@ -123,7 +123,7 @@ from alight.sim.quadrotor import (  # noqa: E402
     SL_W,
 )
 from alight.sim.sensors import RangeFinderConfig  # noqa: E402
-from alight.types import FloatArray, Outcome, quat_to_rotmat, yaw_of  # noqa: E402
+from alight.types import FloatArray, quat_to_rotmat, yaw_of  # noqa: E402
 
 CONTROL_DT = 0.01  # the autopilot's position loop and the lockstep period (s)
 GRAVITY = 9.81
@@ -829,7 +829,6 @@ class EmulatedAutopilot:
 
     def _finish(self, wall_s: float) -> dict[str, Any]:
         w = self.world
-        c = w.contact
         outcome = w.final_outcome
         motor_t = np.array(self.motor_t)
         energy = flight_energy_J(motor_t, np.array(self.motor_N)) if motor_t.size > 1 else None
@@ -838,20 +837,7 @@ class EmulatedAutopilot:
             "scenario": s.model_dump(mode="json"),
             "seed": s.seed,
             "preset": s.preset,
-            "outcome": outcome.value,
-            "success": outcome is Outcome.LANDED,
-            "touchdown_error_m": None if c is None else c.touchdown_error_m,
-            "touchdown_rel_speed_mps": None if c is None else c.rel_speed_mps,
-            "touchdown_rel_vertical_speed_mps": None if c is None else c.rel_vertical_speed_mps,
-            "touchdown_rel_horizontal_speed_mps": None if c is None else c.rel_horizontal_speed_mps,
-            "touchdown_tilt_deg": None if c is None else math.degrees(c.tilt_rad),
-            "contact_surface": None if c is None else c.surface,
-            "contact_reason": None if c is None else c.reason,
-            "outcome_reason": w.outcome_reason,
-            "time_first_contact_s": w.t_contact,
-            "time_motors_off_s": w.t_motors_off,
-            "bounces": w.bounces,
-            "time_to_land_s": w.t_contact if outcome is Outcome.LANDED else None,
+            **w.verdict(),
             "energy_flight_J": energy,
             "simulated_time_s": w.t,
             "sitl_wall_time_s": wall_s,
