@@ -24,12 +24,12 @@ from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.sitl import (  # noqa: E402
     EmulatedAutopilot,
     FlightMode,
-    SimWorld,
     SitlConfig,
     decode_mode,
     encode_mode,
     position_control,
 )
+from alight.evaluation.world import World  # noqa: E402
 from alight.scenario import Scenario  # noqa: E402
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V  # noqa: E402
 from alight.types import quat_to_rotmat  # noqa: E402
@@ -52,7 +52,7 @@ def test_mode_numbers_round_trip(flavour: str) -> None:
 
 
 def test_position_controller_takes_off_and_holds_a_point() -> None:
-    world = SimWorld(Scenario.model_validate({"preset": "groundtruth", "duration_s": 10.0, "seed": 2}))
+    world = World.for_scenario(Scenario.model_validate({"preset": "groundtruth", "duration_s": 10.0, "seed": 2}))
     goal = np.array([1.0, -1.0, 3.0])
     for k in range(8 * 200):
         if k % 2 == 0:
@@ -62,7 +62,7 @@ def test_position_controller_takes_off_and_holds_a_point() -> None:
                 airframe=DEFAULT_AIRFRAME,
             )  # fmt: skip
             world.set_command(thrust, w, True)
-        world.tick()
+        world.step()
     x = world.x
     assert np.linalg.norm(x[SL_P] - goal) < 0.1 and np.linalg.norm(x[SL_V]) < 0.1
     R = quat_to_rotmat(x[SL_Q])
@@ -234,7 +234,7 @@ def test_distance_sensor_out_of_range_round_trip() -> None:
     assert distance_sensor_range_m(mav.distance_sensor_encode(0, 20, 1400, 65535, 0, 0, 25, 0)) == math.inf
 
 
-def _climb_then(world: SimWorld, goal: np.ndarray, seconds: float) -> None:
+def _climb_then(world: World, goal: np.ndarray, seconds: float) -> None:
     for k in range(round(seconds * 200)):
         if k % 2 == 0:
             x = world.x
@@ -243,7 +243,7 @@ def _climb_then(world: SimWorld, goal: np.ndarray, seconds: float) -> None:
                 airframe=world.airframe,
             )  # fmt: skip
             world.set_command(thrust, w, True)
-        world.tick()
+        world.step()
 
 
 def test_world_cuts_no_motor_and_judges_after_settling() -> None:
@@ -251,12 +251,12 @@ def test_world_cuts_no_motor_and_judges_after_settling() -> None:
     stops them); a descent the failsafe ends on the ground is judged ``aborted`` once settled after the
     disarm; motors stopped in the air end in a judged crash."""
     base = {"preset": "groundtruth", "duration_s": 20.0, "seed": 4, "contact": {"settle_s": 1.0}}
-    world = SimWorld(Scenario.model_validate(base))
+    world = World.for_scenario(Scenario.model_validate(base))
     assert world.airframe == load_airframe("f450")  # the scenario's airframe
     gear = world.airframe.gear_height
     _climb_then(world, np.array([0.0, 0.0, 1.5]), 3.0)
     assert world.airborne and world.contact is None
-    world.ground_ok = True  # a failsafe's land: the ground is its safe end
+    world.ground_ok = world.aborting = True  # a failsafe's land: the ground is its safe end
     _climb_then(world, np.array([0.0, 0.0, gear - 0.3]), 4.0)  # pushes into the ground, motors on
     c = world.contact
     assert c is not None and c.surface == "ground" and c.outcome.value == "landed"
@@ -264,15 +264,15 @@ def test_world_cuts_no_motor_and_judges_after_settling() -> None:
     world.set_command(0.0, np.zeros(3), False)  # the disarm
     t_off = world.t
     while not world.done:
-        world.tick()
+        world.step()
     assert world.t == pytest.approx(t_off + 1.0, abs=0.006)
     assert world.final_outcome.value == "aborted" and world.t_motors_off == t_off
 
-    world = SimWorld(Scenario.model_validate(base))
+    world = World.for_scenario(Scenario.model_validate(base))
     _climb_then(world, np.array([0.0, 0.0, 3.0]), 3.0)
     world.set_command(0.0, np.zeros(3), False)  # motors off in the air: it falls
     while not world.done:
-        world.tick()
+        world.step()
     assert world.final_outcome.value == "crashed" and world.contact is not None
     assert world.contact.outcome.value == "crashed"
 
@@ -311,7 +311,7 @@ def test_precland_land_detector_disarms_on_the_pad() -> None:
                 ap.handle(mav.decode(bytearray(msg.pack(mav))))
             ap._control()
             for _ in range(2):
-                imu = w.tick()
+                imu = w.step()
                 ap._send_sensors(imu)
                 if w.done:
                     break

@@ -16,7 +16,7 @@ import pytest
 from scipy import linalg, signal
 
 from alight.airframes import load_airframe
-from alight.evaluation.runner import _wind
+from alight.evaluation.world import make_wind
 from alight.scenario import scenario_from_dict
 from alight.sim.wind import (
     TURBULENCE_W20_MPS,
@@ -179,16 +179,16 @@ def test_drag_area_comes_from_the_airframe() -> None:
     rng = np.random.default_rng(0)
     p, v = np.array([0.0, 0.0, 5.0]), np.zeros(3)
     steady = scenario_from_dict({"wind": {"model": "steady", "velocity_mps": [12.0, 0.0, 0.0]}})
-    f_heavy = _wind(steady, rng, heavy).force_W(0.0, p, v)
+    f_heavy = make_wind(steady, rng, heavy).force_W(0.0, p, v)
     assert f_heavy[0] == pytest.approx(0.5 * 1.2 * heavy.body_drag_area_m2 * 144.0)
     # the F450's area is paper 004's 0.09 m^2: the same force as the steady model always gave
     np.testing.assert_array_equal(
-        _wind(steady, rng, f450).force_W(0.0, p, v), SteadyWind(np.array([12.0, 0.0, 0.0])).force_W(0.0, p, v)
+        make_wind(steady, rng, f450).force_W(0.0, p, v), SteadyWind(np.array([12.0, 0.0, 0.0])).force_W(0.0, p, v)
     )
     dryden = scenario_from_dict(
         {"wind": {"model": "dryden", "velocity_mps": [12.0, 0.0, 0.0], "turbulence": "light"}}
     )
-    wind = _wind(dryden, rng, heavy)
+    wind = make_wind(dryden, rng, heavy)
     f = wind.force_W(0.0, p, v)
     rel = wind.air_velocity_W(0.0) - v
     np.testing.assert_allclose(f, 0.5 * 1.2 * heavy.body_drag_area_m2 * np.linalg.norm(rel) * rel)

@@ -1,10 +1,10 @@
 """An emulated autopilot: alight's simulated world behind a MAVLink endpoint on loopback UDP.
 
 ``alight sitl SCENARIO.yaml --port PORT`` runs the scenario's world (the same airframe, quadrotor with its
-contact model, rate loop, wind, platform, sensors, faults, renderer and outcome judging as ``alight fly``,
-reused from ``alight.sim`` and ``alight.evaluation``; :class:`SimWorld` says what is mirrored from the
-runner's loop) and speaks MAVLink 2 like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter) flight
-controller would on its companion-computer link. ``alight bridge`` connects to it and flies.
+contact model, rate loop, wind, platform, sensors, faults, renderer and outcome judging as ``alight fly``:
+the one :class:`~alight.evaluation.world.World` that ``run_mission`` steps too) and speaks MAVLink 2
+like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter) flight controller would on its
+companion-computer link. ``alight bridge`` connects to it and flies.
 
 The world and the verdict
 -------------------------
@@ -91,14 +91,12 @@ needs a range finder, TIMESYNC-corrected target timestamps, and yaw alignment wi
 
 from __future__ import annotations
 
-import copy
 import enum
 import json
 import math
 import os
 import select
 import time
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -111,52 +109,21 @@ from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
 
 import alight  # noqa: E402
 from alight.airframe import Airframe  # noqa: E402
-from alight.airframes import load_airframe  # noqa: E402
-from alight.cameras.pinhole import camera_pose_W  # noqa: E402
-from alight.control.rate import pack_low_level_params  # noqa: E402
 from alight.energy import flight_energy_J  # noqa: E402
 from alight.errors import ConfigError, InputError  # noqa: E402
-from alight.evaluation.physics import (  # noqa: E402
-    IN_DECK,
-    IN_F_EXT,
-    IN_MOTORS_ON,
-    IN_THRUST,
-    IN_V_WIND,
-    IN_W_CMD,
-    N_IN,
-    tick_batch,
-)
-from alight.evaluation.runner import LIFT_OFF_M, PHYSICS_DT, TICK_DT, _place_platform, _wind  # noqa: E402
+from alight.evaluation.world import TICK_DT, Shot, World  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, encode_message  # noqa: E402
-from alight.mission.presets import build_preset  # noqa: E402
-from alight.pads import PadDesign  # noqa: E402
 from alight.scenario import Scenario  # noqa: E402
-from alight.sim.faults import Faults  # noqa: E402
 from alight.sim.quadrotor import (  # noqa: E402
-    CP_K,
-    DK_A,
-    DK_HALF,
-    DK_ON,
-    DK_P,
-    DK_V,
-    DK_YAW,
-    DK_YAW_RATE,
     IX_F,
     SL_P,
     SL_Q,
     SL_V,
     SL_W,
-    initial_state,
-    pack_contact_params,
-    pack_params,
 )
-from alight.sim.render import Renderer, RenderOptions  # noqa: E402
-from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig  # noqa: E402
-from alight.sim.textures import DistractorSpec, make_ground_texture  # noqa: E402
-from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled  # noqa: E402
-from alight.sim.wind import NoWind  # noqa: E402
-from alight.types import EgoState, FloatArray, Outcome, quat_to_rotmat, yaw_of  # noqa: E402
+from alight.sim.sensors import RangeFinderConfig  # noqa: E402
+from alight.types import FloatArray, quat_to_rotmat, yaw_of  # noqa: E402
 
 CONTROL_DT = 0.01  # the autopilot's position loop and the lockstep period (s)
 GRAVITY = 9.81
@@ -360,294 +327,18 @@ def position_control(
     return thrust, w_cmd
 
 
-class SimWorld:
-    """The simulated world of a scenario, stepped one 200 Hz tick at a time with the autopilot's
-    collective thrust and body-rate command; the same models, seeding and contact judging as
-    ``run_mission``.
-
-    ``run_mission``'s loop body is one function that also drives the pipeline, so it cannot be called
-    from here: this class mirrors it (the physics batches with the contact parameters and the deck
-    inputs, the first-contact and bounce bookkeeping, the settling judgement) and imports every piece
-    that is a function (``_place_platform``, ``_wind``, ``judge_contact``, ``judge_settled``, the
-    constants). A change to the runner's world step must be made here too.
-
-    Nothing here stops the motors: they run while :meth:`set_command` says so (the emulated autopilot
-    is armed); the outcome is judged like the runner's, the first contact when it happens and the rest
-    ``contact.settle_s`` after the motors stopped in the air (``t_motors_off``)."""
-
-    def __init__(self, scenario: Scenario, airframe: Airframe | None = None) -> None:
-        s = scenario
-        if airframe is None:
-            airframe = load_airframe(s.airframe)
-        self.scenario = s
-        self.airframe = airframe
-        # The runner's nine children of the seed: eight components, the ninth for the faults.
-        seeds = np.random.SeedSequence(s.seed).spawn(9)
-        rngs = [np.random.default_rng(c) for c in seeds[:8]]
-        rng_place, rng_render, rng_wind, rng_imu, rng_odo, rng_range, _rng_perc, rng_pipe = rngs
-        self.platform = _place_platform(s, rng_place)
-        self.wind = _wind(s, rng_wind, airframe)
-        self.imu = Imu(ImuConfig(), rng_imu)
-        self.odometry = Odometry(OdometryConfig(), rng_odo)
-        rf = s.rangefinder
-        self.rangefinder = RangeFinder(
-            RangeFinderConfig(
-                origin_B=(0.0, 0.0, -airframe.gear_height),
-                min_range_m=rf.min_range_m,
-                max_range_m=rf.max_range_m,
-                noise_std_m=rf.noise_m,
-            ),
-            rng_range,
-        )
-        self.contact_params = pack_contact_params(
-            airframe,
-            stiffness_N_per_m=s.contact.stiffness_N_per_m,
-            damping_Ns_per_m=s.contact.damping_Ns_per_m,
-            friction=s.contact.friction,
-            gear_half_width_m=s.contact.gear_half_width_m,
-        )
-        self.limits = ContactLimits(
-            gear_half_width=s.contact.gear_half_width_m,
-            max_vertical_speed_mps=s.contact.max_vertical_speed_mps,
-            max_horizontal_speed_mps=s.contact.max_horizontal_speed_mps,
-            max_tilt_deg=s.contact.max_tilt_deg,
-        )
-        # The preset gives the camera, pad and mount the companion's pipeline will assume; its pipeline
-        # is not used here (the companion runs its own).
-        preset = build_preset(s, airframe, rng_pipe)
-        self.mount = preset.mount
-        self.faults = Faults(
-            s.faults,
-            seeds[8],
-            camera=preset.uses_camera,
-            latency_s=s.perception.latency_s,
-            extra_dropout_prob=s.perception.dropout_prob,
-            range_span_m=(rf.min_range_m, rf.max_range_m),
-            tick_dt=TICK_DT,
-        )
-        self.faults.check_preset(s.preset, preset.uses_camera)
-        self.renderer: Renderer | None = None
-        if preset.uses_camera and preset.camera is not None and isinstance(preset.pad, PadDesign):
-            cs = s.camera
-            color = preset.color_camera if cs.color is None else cs.color
-            distractors = None if cs.distractors is None else DistractorSpec(**cs.distractors.model_dump())
-            ground = make_ground_texture(cs.ground, rng_render, color=color, distractors=distractors)
-            self.renderer = Renderer(
-                preset.camera,
-                ground,
-                preset.pad,
-                RenderOptions(
-                    noise_sigma_dn=cs.noise_dn,
-                    exposure_time_s=cs.exposure_s,
-                    exposure_gain=cs.exposure_gain,
-                    gamma=cs.gamma,
-                    color=color,
-                    illumination_gain_bgr=cs.illumination_gain_bgr,
-                    brightness_drift=cs.brightness_drift,
-                    brightness_drift_period_s=cs.brightness_drift_period_s,
-                ),
-                rng_render,
-                R_BC=preset.mount.R_BC,
-            )
-        self.sim_params = pack_params(airframe)
-        self.ll_params = pack_low_level_params(airframe, preset.rate_gains)
-        gear = airframe.gear_height
-        # standing on the ground, the feet compressed by the weight (as the runner starts)
-        self.x = initial_state(
-            np.array([0.0, 0.0, gear - airframe.weight_N / (4 * self.contact_params[CP_K])])
-        )
-        self.x_prev = self.x
-        self.inputs = np.zeros(N_IN)
-        self.inputs[IN_DECK + DK_ON] = 1.0
-        self.inputs[IN_DECK + DK_HALF] = 0.5 * s.platform.pad_size_m
-        self.n_sub = round(TICK_DT / PHYSICS_DT)
-        self.every_control = round(CONTROL_DT / TICK_DT)
-        self.n_ticks = int(round(s.duration_s / TICK_DT))
-        self.truths = self.platform.states(np.arange(self.n_ticks + 1, dtype=np.float64) * TICK_DT)
-        self.k = 0
-        self.airborne = False
-        self.motors_on = False
-        self.contact: Contact | None = None  # the first contact after take-off, judged from the truth
-        self.t_contact: float | None = None
-        self.t_motors_off: float | None = None  # the motors stopped in the air or after touching down
-        self.outcome: Outcome | None = None
-        self.outcome_reason = ""
-        self.ground_ok = False
-        """Set by the autopilot: a ground contact is the safe end of its descent (a failsafe land), and
-        a safe settling scores ``aborted`` (the runner's abort landing)."""
-        self.touching = False
-        self.touch_z = 0.0
-        self.bounces = 0
-        self.on_deck = 0
-        self.on_ground = 0
-        # the lowest a foot can be below the body origin (tilted 25 deg with the feet 0.2 m out), plus 1 cm
-        reach = gear + s.contact.gear_half_width_m * 0.5 + 0.01
-        self.low_z = s.platform.pad_height_m + reach
-        self.f_wind = np.zeros(3)
-        self.last_range_m = math.inf  # the latest reading as the sensor reported it (faults applied)
-        self._batch_xs = self._batch_imu = self._batch_touch = np.empty((0, 0))
-        self._batch_i = self._batch_n = 0
-
-    def warm_up(self) -> None:
-        """Compile (or load from numba's cache) the kernels the first ticks, range readings and frames
-        call, without drawing a random number or changing any state (the IMU's noise rows are only
-        peeked, the renderer is a copy). The emulator does it before it waits for its companion: a
-        compile in the middle of the flight would silence its HEARTBEATs, and a companion takes 5 s of
-        silence as a lost link."""
-        bias, noise, scale = self.imu.kernel_inputs_many(self.every_control)
-        tick_batch(
-            self.x.copy(), self.inputs.copy(), self.sim_params, self.ll_params, bias.copy(), noise.copy(),
-            scale.copy(), PHYSICS_DT, self.n_sub, self.contact_params, self.every_control,
-            -math.inf, math.inf,
-        )  # fmt: skip
-        copy.deepcopy(self.rangefinder).measure_at(
-            self.x[SL_P], self.x[SL_Q], self.truths.p_WP[0], float(self.truths.yaw[0]),
-            self.scenario.platform.pad_size_m,
-        )  # fmt: skip
-        if self.renderer is not None:
-            p_WC, R_WC = camera_pose_W(self.x[SL_P], quat_to_rotmat(self.x[SL_Q]), self.mount)
-            pose = (self.truths.p_WP[0], float(self.truths.yaw[0]))
-            copy.deepcopy(self.renderer).render(p_WC, R_WC, pose, self.x[SL_W], t_s=0.0)
-
-    @property
-    def t(self) -> float:
-        return self.k * TICK_DT
-
-    @property
-    def done(self) -> bool:
-        return self.outcome is not None or self.k >= self.n_ticks
-
-    @property
-    def final_outcome(self) -> Outcome:
-        """The verdict: the judged one, or ``timeout`` (the motors never stopped, or the settling time
-        ran past the end), as the runner scores it."""
-        return Outcome.TIMEOUT if self.outcome is None else self.outcome
-
-    def set_command(self, thrust_N: float, w_cmd_B: FloatArray, motors_on: bool) -> None:
-        """The autopilot's command; it acts from the next physics batch on (batches end at the 10 ms
-        control ticks, where the emulated autopilot commands, as the runner's controller does)."""
-        self.inputs[IN_THRUST] = thrust_N
-        self.inputs[IN_W_CMD : IN_W_CMD + 3] = w_cmd_B
-        self.inputs[IN_MOTORS_ON] = 1.0 if motors_on else 0.0
-        self.motors_on = motors_on
-        if self.airborne and not motors_on and self.t_motors_off is None:
-            self.t_motors_off = self.t  # judge once the vehicle has settled
-
-    def _physics_batch(self) -> None:
-        # The runner's batch: up to the next control tick, cut short where a first contact is to be
-        # judged or a bias step is due; wind and deck stamped at the batch's start.
-        x, inputs, k = self.x, self.inputs, self.k
-        tr = self.truths
-        if not isinstance(self.wind, NoWind):
-            self.f_wind = self.wind.force_W(self.t, x[SL_P], x[SL_V])
-            inputs[IN_F_EXT : IN_F_EXT + 3] = self.f_wind
-            inputs[IN_V_WIND : IN_V_WIND + 3] = self.wind.air_velocity_W(self.t)
-        inputs[IN_DECK + DK_P : IN_DECK + DK_P + 3] = tr.p_WP[k]
-        inputs[IN_DECK + DK_V : IN_DECK + DK_V + 3] = tr.v_WP[k]
-        inputs[IN_DECK + DK_A : IN_DECK + DK_A + 3] = tr.a_WP[k]
-        inputs[IN_DECK + DK_YAW] = tr.yaw[k]
-        inputs[IN_DECK + DK_YAW_RATE] = tr.yaw_rate[k]
-        m = min(self.every_control - k % self.every_control, self.n_ticks - k)
-        m = self.faults.before_imu_batch(k + 1, m, self.imu)
-        bias, noise, scale = self.imu.kernel_inputs_many(m)
-        gear = self.airframe.gear_height
-        self._batch_xs, self._batch_imu, self._batch_touch, self._batch_n = tick_batch(
-            x, inputs, self.sim_params, self.ll_params, bias, noise, scale, PHYSICS_DT, self.n_sub,
-            self.contact_params, m, self.low_z if self.airborne and self.contact is None else -math.inf,
-            math.inf if self.airborne else gear + 0.05,
-        )  # fmt: skip
-        self.imu.used(self._batch_n)
-        self._batch_i = 0
-
-    def tick(self) -> FloatArray:
-        """Advance one tick; returns the IMU sample (specific force, rate; FLU) at the new time. Judges
-        the contact as the runner does and sets ``outcome`` when the mission's end is decided."""
-        if self._batch_i >= self._batch_n:
-            self._physics_batch()
-        i = self._batch_i
-        self.x_prev = self.x
-        self.x = x = self._batch_xs[i]
-        sample: FloatArray = self._batch_imu[i]
-        self.on_deck, self.on_ground = int(self._batch_touch[i, 0]), int(self._batch_touch[i, 1])
-        self._batch_i += 1
-        self.k += 1
-        k, t = self.k, self.t
-        gear = self.airframe.gear_height
-        pad = self.scenario.platform.pad_size_m
-        p_WB = x[SL_P]
-        on_deck, on_ground = self.on_deck, self.on_ground
-        if not self.airborne and p_WB[2] - gear > 0.05:
-            self.airborne = True
-        ground_ok = self.ground_ok
-        if self.airborne and (on_deck or on_ground or self.touching):
-            truth = self.truths.at(k)
-            if on_deck or on_ground:
-                surface = "ground" if on_ground and not on_deck else "pad"
-                if not self.touching:
-                    self.touching = True
-                    self.touch_z = 0.0 if surface == "ground" else float(truth.p_WP[2])
-                    judged = judge_contact(
-                        p_WB, self.x_prev[SL_V], quat_to_rotmat(self.x_prev[SL_Q]), truth, pad, gear,
-                        self.limits, surface=surface, ground_ok=ground_ok,
-                    )  # fmt: skip
-                    if judged is not None:
-                        if self.contact is None:
-                            self.contact, self.t_contact = judged, t
-                        if judged.outcome is Outcome.CRASHED:
-                            self.outcome, self.outcome_reason = Outcome.CRASHED, judged.reason
-                            if self.contact is not judged:
-                                self.outcome_reason = f"after a bounce: {judged.reason}"
-                            return sample
-                elif on_ground and not ground_ok:
-                    self.outcome, self.outcome_reason = Outcome.CRASHED, "ground"  # slid or tipped off
-                    return sample
-            elif p_WB[2] - gear - self.touch_z > LIFT_OFF_M:
-                self.touching = False
-                self.bounces += 1
-        if self.t_motors_off is not None and t - self.t_motors_off >= self.scenario.contact.settle_s:
-            settled, self.outcome_reason = judge_settled(
-                p_WB, quat_to_rotmat(x[SL_Q]), self.truths.at(k), pad, self.limits, on_deck, on_ground,
-                ground_ok=ground_ok,
-            )  # fmt: skip
-            if settled is Outcome.CRASHED:
-                self.outcome = Outcome.CRASHED
-            else:
-                self.outcome = Outcome.ABORTED if ground_ok else Outcome.LANDED
-        return sample
-
-    def odometry_message(self) -> EgoState | None:
-        """The odometry model's message now, as delivered (odometry faults applied; None: withheld)."""
-        x = self.x
-        return self.faults.odometry(self.odometry.measure(self.t, x[SL_P], x[SL_V], x[SL_Q], x[SL_W]))
-
-    def range_m(self) -> float:
-        """A range-finder reading now, as the sensor reports it (``-inf`` in its blind zone, ``+inf``
-        beyond its range or without a return; range faults applied). Draws from the sensor's noise."""
-        k = self.k
-        r = self.rangefinder.measure_at(
-            self.x[SL_P], self.x[SL_Q], self.truths.p_WP[k], float(self.truths.yaw[k]),
-            self.scenario.platform.pad_size_m,
-        )  # fmt: skip
-        self.last_range_m = self.faults.range(self.t, r)
-        return self.last_range_m
-
-    def render(self) -> np.ndarray | None:
-        if self.renderer is None:
-            return None
-        k = self.k
-        p_WC, R_WC = camera_pose_W(self.x[SL_P], quat_to_rotmat(self.x[SL_Q]), self.mount)
-        pose = (self.truths.p_WP[k], float(self.truths.yaw[k]))
-        return self.renderer.render(p_WC, R_WC, pose, self.x[SL_W], t_s=self.t)
-
-
 class EmulatedAutopilot:
-    """The MAVLink endpoint and the autopilot's logic around a :class:`SimWorld`."""
+    """The MAVLink endpoint and the autopilot's logic around a :class:`~alight.evaluation.world.World`."""
 
     def __init__(self, scenario: Scenario, config: SitlConfig, airframe: Airframe | None = None) -> None:
         if config.flavour not in ("px4", "ardupilot"):
             raise ConfigError(f"sitl: flavour must be px4 or ardupilot, got {config.flavour!r}")
+        if scenario.platform.telemetry is not None:
+            # The emulator has no MAVLink stream for the platform's GNSS fix, so it would not reach the
+            # companion: refuse it rather than fly without it.
+            raise ConfigError("platform.telemetry: not available through alight sitl (no MAVLink stream)")
         self.config = config
-        self.world = SimWorld(scenario, airframe)
+        self.world = World.for_scenario(scenario, airframe)
         self.airframe = self.world.airframe
         try:
             self.conn = mavutil.mavlink_connection(
@@ -681,8 +372,6 @@ class EmulatedAutopilot:
         self.ack_t = -1.0
         self.events: list[dict[str, Any]] = []
         self.setpoint_times: list[tuple[float, str]] = []
-        self.pending_frames: deque[tuple[float, float, np.ndarray]] = deque()
-        self.next_capture = 0.0
         self.frame_seq = 0
         self._last_hb_wall = 0.0
         self._last_hb_t = -1.0
@@ -720,7 +409,8 @@ class EmulatedAutopilot:
             self.hold_yaw = yaw_of(quat_to_rotmat(self.world.x[SL_Q]))
             self.hold_p = p.copy()
         # a failsafe's land ends wherever the vehicle is: touching the ground is its safe end (aborted)
-        self.world.ground_ok = mode is FlightMode.LAND and why == "offboard loss"
+        # a failsafe's land: touching the ground is its safe end, and a safe settling scores aborted
+        self.world.ground_ok = self.world.aborting = mode is FlightMode.LAND and why == "offboard loss"
         self._event("mode", mode=mode.value, reason=why)
 
     @property
@@ -1037,21 +727,15 @@ class EmulatedAutopilot:
         w = self.world
         if w.renderer is None:
             return
-        t = w.t
-        if t + 1e-9 >= self.next_capture:
-            self.next_capture += 1.0 / w.scenario.perception.rate_hz
-            stalled = self.config.camera_stall_after_s is not None and t >= self.config.camera_stall_after_s
-            if not stalled:
-                rendered = w.render()
-                # lost, dark, corrupted, frozen or as captured; delivered after the latency (+ faults)
-                image = None if rendered is None else w.faults.frame(t, rendered)
-                if isinstance(image, np.ndarray):
-                    self.pending_frames.append((w.faults.delivery_time(t), t, image))
-        while self.pending_frames and self.pending_frames[0][0] <= t + 1e-9:
-            _, t_cap, image = self.pending_frames.popleft()
+        stalled = self.config.camera_stall_after_s is not None and w.t >= self.config.camera_stall_after_s
+        if not stalled:
+            w.capture()  # when due; lost, dark, corrupted, frozen or as captured; delivered after the latency
+        for t_cap, shot in w.deliveries():
+            assert isinstance(shot, Shot)
+            image = w.develop(shot, t_cap, used=True)  # the companion's detector decides what to skip
             if self.frames.send_frame(t_cap, image):
                 self.frame_seq += 1
-                self.mav.named_value_int_send(int(round(t * 1e3)), FRAME_SEQ_NAME, self.frame_seq)
+                self.mav.named_value_int_send(int(round(w.t * 1e3)), FRAME_SEQ_NAME, self.frame_seq)
 
     def _log(self) -> None:
         w, x = self.world, self.world.x
@@ -1117,7 +801,7 @@ class EmulatedAutopilot:
             self._poll(0.0)
             self._control()
             for _ in range(round(CONTROL_DT / TICK_DT)):
-                imu = w.tick()
+                imu = w.step()
                 if w.k % every_log == 0:
                     self._log()
                 self._camera()
@@ -1145,7 +829,6 @@ class EmulatedAutopilot:
 
     def _finish(self, wall_s: float) -> dict[str, Any]:
         w = self.world
-        c = w.contact
         outcome = w.final_outcome
         motor_t = np.array(self.motor_t)
         energy = flight_energy_J(motor_t, np.array(self.motor_N)) if motor_t.size > 1 else None
@@ -1154,20 +837,7 @@ class EmulatedAutopilot:
             "scenario": s.model_dump(mode="json"),
             "seed": s.seed,
             "preset": s.preset,
-            "outcome": outcome.value,
-            "success": outcome is Outcome.LANDED,
-            "touchdown_error_m": None if c is None else c.touchdown_error_m,
-            "touchdown_rel_speed_mps": None if c is None else c.rel_speed_mps,
-            "touchdown_rel_vertical_speed_mps": None if c is None else c.rel_vertical_speed_mps,
-            "touchdown_rel_horizontal_speed_mps": None if c is None else c.rel_horizontal_speed_mps,
-            "touchdown_tilt_deg": None if c is None else math.degrees(c.tilt_rad),
-            "contact_surface": None if c is None else c.surface,
-            "contact_reason": None if c is None else c.reason,
-            "outcome_reason": w.outcome_reason,
-            "time_first_contact_s": w.t_contact,
-            "time_motors_off_s": w.t_motors_off,
-            "bounces": w.bounces,
-            "time_to_land_s": w.t_contact if outcome is Outcome.LANDED else None,
+            **w.verdict(),
             "energy_flight_J": energy,
             "simulated_time_s": w.t,
             "sitl_wall_time_s": wall_s,

@@ -521,29 +521,18 @@ class Platform:
         figure-8, less for the others)."""
         t = np.ascontiguousarray(ts, dtype=np.float64).reshape(-1)
         if self.config.speed_profile is not None:
-            return self._states_profiled(t)
-        v = self.config.speed_mps
-        g = _eval_path_many(v * t, self._seg, self._geo)
-        n = t.shape[0]
-        c, s = np.cos(g[:, 2]), np.sin(g[:, 2])
-        ac = v * v * g[:, 3]
-        p = np.empty((n, 3))
-        p[:, 0] = g[:, 0]
-        p[:, 1] = g[:, 1]
-        p[:, 2] = self.config.pad_height_m
-        vel = np.zeros((n, 3))
-        vel[:, 0] = v * c
-        vel[:, 1] = v * s
-        acc = np.zeros((n, 3))
-        acc[:, 0] = -ac * s
-        acc[:, 1] = ac * c
-        yaw = (g[:, 2] + math.pi) % (2 * math.pi) - math.pi
-        return PlatformStates(t.copy(), p, vel, acc, yaw, v * g[:, 3])
+            # the path evaluated at the integrated arc length, with the tangential acceleration
+            s_m, v, a_t = self._along(t)
+            return self._states_along(t, np.ascontiguousarray(s_m), v, a_t)
+        v0 = self.config.speed_mps
+        return self._states_along(t, v0 * t, v0, None)
 
-    def _states_profiled(self, t: FloatArray) -> PlatformStates:
-        # The same path evaluated at the integrated arc length; tangential plus centripetal acceleration.
-        s_m, v, a_t = self._along(t)
-        g = _eval_path_many(np.ascontiguousarray(s_m), self._seg, self._geo)
+    def _states_along(
+        self, t: FloatArray, s_m: FloatArray, v: FloatArray | float, a_t: FloatArray | None
+    ) -> PlatformStates:
+        # The states at arc lengths s_m (m) driven at speeds v (m/s) with tangential accelerations a_t
+        # (m/s^2; None: a constant speed); the centripetal acceleration from the path's curvature.
+        g = _eval_path_many(s_m, self._seg, self._geo)
         n = t.shape[0]
         c, s = np.cos(g[:, 2]), np.sin(g[:, 2])
         ac = v * v * g[:, 3]
@@ -555,8 +544,12 @@ class Platform:
         vel[:, 0] = v * c
         vel[:, 1] = v * s
         acc = np.zeros((n, 3))
-        acc[:, 0] = a_t * c - ac * s
-        acc[:, 1] = a_t * s + ac * c
+        if a_t is None:
+            acc[:, 0] = -ac * s
+            acc[:, 1] = ac * c
+        else:
+            acc[:, 0] = a_t * c - ac * s
+            acc[:, 1] = a_t * s + ac * c
         yaw = (g[:, 2] + math.pi) % (2 * math.pi) - math.pi
         return PlatformStates(t.copy(), p, vel, acc, yaw, v * g[:, 3])
 
