@@ -25,6 +25,7 @@ axis, altitudes and heights <= 1000 m, latencies <= 10 s, rates <= 1000 Hz, dist
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -489,6 +490,10 @@ class MissionSpec(_Strict):
     # docs/scenarios.md lists them) --
     takeoff_timeout_s: PositiveFloat | None = None
     """Abort when the take-off has not reached its hover point after this long (s)."""
+    takeoff_clearance_m: PositiveFloat | None = None
+    """Below this height above the take-off point the take-off's tilt is limited (m)."""
+    takeoff_max_tilt_rad: Annotated[float, Field(gt=0, lt=math.pi / 2, allow_inf_nan=False)] | None = None
+    """The take-off's tilt limit near the ground (rad)."""
     search_timeout_s: PositiveFloat | None = None
     """The search around the predicted platform lasts this long before the whole area is explored (s)."""
     search_speed_uncertainty_mps: NonNegFloat | None = None

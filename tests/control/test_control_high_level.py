@@ -234,3 +234,28 @@ def test_registry_contract(name: str) -> None:
         assert math.isfinite(cmd.thrust_N) and np.isfinite(cmd.w_WB_B_cmd).all()
         assert 4 * AF.motor_thrust_min_N <= cmd.thrust_N <= 4 * AF.motor_thrust_max_N
     ctl.reset()
+
+
+@pytest.mark.parametrize("limit_deg", [5.0, 12.0, 30.0])
+def test_a_lowered_tilt_limit_bounds_the_desired_attitude_and_is_undone(limit_deg: float) -> None:
+    """``set_tilt_limit`` (the take-off's limit near the ground): a far horizontal reference asks for more
+    tilt than the limit; the desired attitude's tilt equals the limit exactly, and None restores the
+    controller's own limit (a command identical to a fresh controller's)."""
+    from alight.control import L1AugmentedController, TiltLimited
+    from alight.types import quat_to_rotmat
+
+    ego, ref = _ego(p=(0, 0, 2)), _ref(p=(20, 0, 2))
+    for ctl in (HighLevelController(AF), L1AugmentedController(HighLevelController(AF))):
+        assert isinstance(ctl, TiltLimited)
+        ctl.set_tilt_limit(math.radians(limit_deg))
+        ctl.command(ego, ref)
+        base = ctl.base if isinstance(ctl, L1AugmentedController) else ctl
+        R_des = quat_to_rotmat(base.q_WB_des)
+        assert math.degrees(math.acos(R_des[2, 2])) == pytest.approx(limit_deg, abs=1e-9)
+        ctl.set_tilt_limit(None)
+        ctl.reset()
+        assert ctl.command(ego, ref).w_WB_B_cmd.tolist() == type(ctl)(
+            *([HighLevelController(AF)] if isinstance(ctl, L1AugmentedController) else [AF])
+        ).command(ego, ref).w_WB_B_cmd.tolist()
+    with pytest.raises(ValueError, match="max_tilt_rad"):
+        HighLevelController(AF).set_tilt_limit(math.pi / 2)

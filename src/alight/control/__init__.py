@@ -38,6 +38,16 @@ class Controller(Protocol):
 
 
 @runtime_checkable
+class TiltLimited(Protocol):
+    """A controller whose tilt limit can be lowered in flight (PX4 does during its take-off ramp)."""
+
+    def set_tilt_limit(self, max_tilt_rad: float | None) -> None:
+        """Limit the commanded tilt to ``max_tilt_rad`` (rad, in (0, pi/2)); None: back to the
+        controller's own limit."""
+        ...
+
+
+@runtime_checkable
 class RateController(Protocol):
     """Body-rate loop: ``torque(w_cmd, w) -> torque_B`` (N m, shape (3,))."""
 

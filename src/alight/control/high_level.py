@@ -599,6 +599,7 @@ class HighLevelController:
         self.airframe = airframe
         self.gains = gains if gains is not None else HighLevelGains()
         self.params = pack_high_level_params(airframe, self.gains)
+        self._tan_tilt_own = float(self.params[HL_TAN_TILT])
         self._integ = np.zeros(3)
         self._out = np.zeros(HL_N_OUT)
         self._t_last = math.nan
@@ -608,6 +609,16 @@ class HighLevelController:
         """Forget the integral and the time of the last call (e.g. at a mode change)."""
         self._integ[:] = 0.0
         self._t_last = math.nan
+
+    def set_tilt_limit(self, max_tilt_rad: float | None) -> None:
+        """Limit the tilt of the commands to ``max_tilt_rad`` (rad), never above the controller's own
+        limit; None: the own limit again (:class:`~alight.control.TiltLimited`)."""
+        if max_tilt_rad is None:
+            self.params[HL_TAN_TILT] = self._tan_tilt_own
+            return
+        if not (0.0 < max_tilt_rad < math.pi / 2):
+            raise ValueError(f"max_tilt_rad must be in (0, pi/2) rad, got {max_tilt_rad}")
+        self.params[HL_TAN_TILT] = min(math.tan(max_tilt_rad), self._tan_tilt_own)
 
     @property
     def q_WB_des(self) -> FloatArray:

@@ -392,6 +392,10 @@ class L1AugmentedController:
         _init_state(self._state)
         self.base.reset()
 
+    def set_tilt_limit(self, max_tilt_rad: float | None) -> None:
+        """The baseline's tilt limit (:class:`~alight.control.TiltLimited`)."""
+        self.base.set_tilt_limit(max_tilt_rad)
+
     def reset_adaptive(self) -> None:
         """Forget the adaptive state only (predictor, estimate, filter); the baseline keeps its own."""
         _init_state(self._state)

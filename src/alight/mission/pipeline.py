@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.control import TiltLimited
 from alight.estimation import EgoFed, PixelMeasured, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
@@ -191,6 +192,9 @@ class Pipeline:
         self._set_mode = detector.set_mode if isinstance(detector, ModeAware) else None
         self._set_view_tilt = detector.set_view_tilt if isinstance(detector, TiltAware) else None
         self._set_range = detector.set_range if isinstance(detector, RangeAware) else None
+        self._set_tilt_limit = controller.set_tilt_limit if isinstance(controller, TiltLimited) else None
+        self._z_takeoff: float | None = None  # the estimated height where the take-off started (m)
+        self._tilt_limited = False
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -386,6 +390,7 @@ class Pipeline:
             # Standing on the ground is a disturbance to an adaptive or integrating controller (the
             # ground holds the vehicle against a reference below it): start the flight from zero.
             self.controller.reset()
+            self._z_takeoff = float(ego.p_WB[2])
         if self.status.changed and self.status.mode is Mode.LAND and self.stats.t_landing_start is None:
             self.stats.t_landing_start = t
         hover_W = self.mission.hover_point_W()
@@ -411,12 +416,30 @@ class Pipeline:
         ref = self.guidance.reference(t, mode, target)
         t0 = self.stats.charge("guidance", t0)
         self.last_reference = ref
+        if self._set_tilt_limit is not None:
+            self._limit_takeoff_tilt(mode, ego)
         cmd = self.controller.command(ego, ref)
         self.stats.charge("controller", t0)
         self.touchdown.observe_attitude(t, ego.q_WB)
         if self._detector_armed():
             cmd = self._touchdown_step(t, ego, target, cmd)
         return cmd
+
+    def _limit_takeoff_tilt(self, mode: Mode, ego: EgoState) -> None:
+        """Near the ground during the take-off, the tilt is limited (``mission.takeoff_clearance_m``,
+        ``takeoff_max_tilt_rad``): a vehicle that leans into a wind or toward its climb's goal with its
+        feet a few centimetres up puts a foot on the ground and tips. PX4 limits the tilt during its
+        take-off ramp for the same reason. The vehicle drifts with the wind until clear, then corrects."""
+        cfg = self.mission.config
+        low = (
+            mode is Mode.TAKEOFF
+            and self._z_takeoff is not None
+            and float(ego.p_WB[2]) - self._z_takeoff < cfg.takeoff_clearance_m
+        )
+        if low is not self._tilt_limited:
+            assert self._set_tilt_limit is not None
+            self._set_tilt_limit(cfg.takeoff_max_tilt_rad if low else None)
+            self._tilt_limited = low
 
     def _detector_armed(self) -> bool:
         """The land detector runs during a descent: the landing, and a final action's descent."""

@@ -95,6 +95,8 @@ _MISSION_OPTIONAL = (
     "max_go_arounds",
     "time_budget_s",
     "takeoff_timeout_s",
+    "takeoff_clearance_m",
+    "takeoff_max_tilt_rad",
     "search_timeout_s",
     "max_target_losses",
     "land_position_tolerance_m",

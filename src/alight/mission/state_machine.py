@@ -66,6 +66,13 @@ class MissionConfig:
     takeoff_timeout_s: float = 30.0
     """Take-off not done after this long (wind stronger than the vehicle, a motor short of thrust):
     abort (s)."""
+    takeoff_clearance_m: float = 0.3
+    """During the take-off, below this height above the take-off point (m), the tilt is limited to
+    ``takeoff_max_tilt_rad`` (as PX4 limits it during its take-off ramp): leaning into a wind or toward
+    the climb's goal with the feet this close to the ground would put a foot on it (a foot 0.2 m out
+    reaches 0.14 m down at 45 deg)."""
+    takeoff_max_tilt_rad: float = math.radians(12.0)
+    """The take-off's tilt limit near the ground (rad); 12 deg is PX4's ``MPC_TILTMAX_LND``."""
     land_position_tolerance_m: float = 0.25
     """Descent gate, horizontal offset to the pad: the landing starts below this (m) ..."""
     land_velocity_tolerance_mps: float = 0.3
@@ -130,6 +137,8 @@ class MissionConfig:
             "land_max_position_std_m",
             "land_hold_offset_m",
             "land_hold_rel_speed_mps",
+            "takeoff_clearance_m",
+            "takeoff_max_tilt_rad",
             "land_abort_offset_m",
             "land_abort_rel_speed_mps",
             "land_abort_position_std_m",
@@ -145,6 +154,8 @@ class MissionConfig:
                 continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
+        if self.takeoff_max_tilt_rad >= math.pi / 2:
+            raise ValueError(f"mission.takeoff_max_tilt_rad must be < pi/2, got {self.takeoff_max_tilt_rad:g}")
         if self.max_go_arounds < 0 or self.max_target_losses < 0:
             raise ValueError("mission.max_go_arounds and mission.max_target_losses must be >= 0")
         if self.final_action not in FINAL_ACTIONS:
