@@ -478,7 +478,8 @@ class MissionSpec(_Strict):
     """Descent speed of the landing ramp (m/s); None: the preset's (0.4, and paper 003's 0.1 for
     ``kim_kaist``)."""
     land_commit_height_m: Altitude | None = None
-    """Below this height above the pad a lost target no longer aborts the descent (m; block default 0.6)."""
+    """Below this height above the pad a lost target no longer aborts the descent (m; block default 0.6,
+    raised to where the camera loses a pad its detector must see whole: ``visibility_commit_height_m``)."""
     lost_timeout_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] | None = None
     """Tracking coasts on the platform's prediction while the target is unseen this long, then searches
     around the prediction (s; block default 3)."""

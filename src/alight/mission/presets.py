@@ -115,11 +115,36 @@ _MISSION_OPTIONAL = (
 """Scenario mission keys whose None means the MissionConfig default."""
 
 
-def _mission_config(s: Any, eff: EffectiveBlocks, hover_thrust_N: float) -> MissionConfig:
+VIEW_TILT_ALLOWANCE_RAD = math.radians(5.0)
+"""How much of the camera's half field of view the descent's own tilt may take (rad), in
+:func:`visibility_commit_height_m`."""
+
+
+def visibility_commit_height_m(pad: Any, camera: Any) -> float | None:
+    """The height above the pad (m) below which ``camera`` (looking straight down) can no longer see the
+    part of ``pad`` its detectors need whole, with :data:`VIEW_TILT_ALLOWANCE_RAD` of the half field of
+    view kept for the vehicle's tilt: a descent must commit (go on blind, on the estimate) by then, or
+    it loses the target above the commit height and goes around. None for pads whose detectors see them
+    in part down to the ground (paper 000's tag has a close-range mode, the n-fold marker's centre and
+    the red disc stay detectable); the AprilTag pad's detectors need a whole marker."""
+    if not isinstance(pad, AprilTagPad) or camera is None:
+        return None
+    half_fov = 0.5 * float(min(camera.fov_rad()))
+    usable = max(half_fov - VIEW_TILT_ALLOWANCE_RAD, math.radians(5.0))
+    return 0.5 * pad.min_view_side_m / math.tan(usable)
+
+
+def _mission_config(
+    s: Any, eff: EffectiveBlocks, hover_thrust_N: float, commit_floor_m: float | None = None
+) -> MissionConfig:
     m = s.mission
     land_speed = float(eff.mission.get("land_speed_mps", 0.4))
     td = {k: v for k, v in m.touchdown.model_dump().items() if v is not None}
     optional = {k: getattr(m, k) for k in _MISSION_OPTIONAL if getattr(m, k) is not None}
+    if commit_floor_m is not None and "land_commit_height_m" not in optional:
+        # the camera cannot see the pad below this: commit no lower (a scenario's own value stands)
+        default = MissionConfig.__dataclass_fields__["land_commit_height_m"].default
+        optional["land_commit_height_m"] = max(float(default), commit_floor_m)  # type: ignore[arg-type]
     return MissionConfig(
         land_speed_mps=land_speed if m.land_speed_mps is None else m.land_speed_mps,
         touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td),
@@ -233,7 +258,8 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     uses_camera = bool(eff["detector"].spec.provides.get("image", True))
     camera: PinholeCamera | OmniCamera | None = eff.camera_model if uses_camera else None
     mount = CameraMount.downward()
-    mission = Mission(_mission_config(s, eff, airframe.weight_N))
+    pad = _pad(eff) if uses_camera else None
+    mission = Mission(_mission_config(s, eff, airframe.weight_N, visibility_commit_height_m(pad, camera)))
     area = s.search_area
     guidance = Guidance(
         mission.config,
@@ -258,7 +284,6 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     )
     controller = _controller(airframe, eff)
     ego = EgoEkf(_EGO_EKF_CONFIG)
-    pad = _pad(eff) if uses_camera else None
     detector, energy_model = _detector(s, eff, pad, camera) if uses_camera else (None, None)
     pipeline = Pipeline(
         ego_estimator=ego,

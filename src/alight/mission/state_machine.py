@@ -155,7 +155,9 @@ class MissionConfig:
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
         if self.takeoff_max_tilt_rad >= math.pi / 2:
-            raise ValueError(f"mission.takeoff_max_tilt_rad must be < pi/2, got {self.takeoff_max_tilt_rad:g}")
+            raise ValueError(
+                f"mission.takeoff_max_tilt_rad must be < pi/2, got {self.takeoff_max_tilt_rad:g}"
+            )
         if self.max_go_arounds < 0 or self.max_target_losses < 0:
             raise ValueError("mission.max_go_arounds and mission.max_target_losses must be >= 0")
         if self.final_action not in FINAL_ACTIONS:

@@ -85,6 +85,13 @@ class AprilTagPad:
         return cls(size_m=size_m, center_size_m=0.8 * k, corner_size_m=0.2 * k, corner_offset_m=0.6 * k)
 
     @property
+    def min_view_side_m(self) -> float:
+        """Side of the smallest square around the pad centre that a camera must see whole for the pad
+        to be detected at all (m): the central marker with its one-cell quiet zone. Closer than where
+        this square fills the image, no marker is whole in view (the corner markers lie outside it)."""
+        return self.center_size_m * (1 + 2 / _MARKER_CELLS)
+
+    @property
     def marker_ids(self) -> tuple[int, ...]:
         """All marker ids, central first."""
         return (self.center_id, *self.corner_ids)
