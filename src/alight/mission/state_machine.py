@@ -99,6 +99,11 @@ class MissionConfig:
     estimator's prediction (m). The camera sees the tag's cross down to about 0.3 m, but a moving pad may
     leave the view in the last half metre (a downward camera cannot see the whole pad from closer than
     about its own size: paper 000's reason for the model-based filter)."""
+    land_commit_timeout_s: float | None = None
+    """A descent that has been below the commit height this long without a touchdown goes around (s): it
+    missed the pad (a platform that braked or drove off while the last half metre was flown on the
+    prediction) and would otherwise hover beside it for ever. None: twice the time the descent takes from
+    the commit height to the pad, plus 3 s for the land detector."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -134,6 +139,7 @@ class MissionConfig:
             "land_abort_rel_speed_mps",
             "land_abort_position_std_m",
             "land_hold_timeout_s",
+            "land_commit_timeout_s",
             "lost_timeout_s",
             "land_lost_timeout_s",
             "search_timeout_s",
@@ -141,7 +147,7 @@ class MissionConfig:
         )
         for name in positive:
             value = getattr(self, name)
-            if value is None and name == "takeoff_altitude_m":
+            if value is None and name in ("takeoff_altitude_m", "land_commit_timeout_s"):
                 continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
@@ -175,6 +181,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "relative velocity too large during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "estimate too uncertain during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
+    (Mode.LAND, Mode.GO_AROUND, "no touchdown after the commit height"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -228,6 +235,7 @@ class Mission:
         self._t_start: float | None = None
         self._matched_since: float | None = None
         self._hold_since: float | None = None
+        self._committed_since: float | None = None
         self._coasting = False
         self.descent_hold = False
         """True while the descent holds its height (a marginal gate); the guidance reads it."""
@@ -247,6 +255,7 @@ class Mission:
         self.mode, self.mode_since, self.reason = mode, t, reason
         self._matched_since = None
         self._hold_since = None
+        self._committed_since = None
         self.descent_hold = False
         self.history.append((t, mode, reason))
 
@@ -428,8 +437,14 @@ class Mission:
             self._go_around(t, "target lost during the descent")
             return
         height = float(ego.p_WB[2] - target.p_WP[2])
-        if height <= cfg.land_commit_height_m:
-            self.descent_hold = False  # committed: the descent continues on the prediction
+        if self._committed_since is None and height <= cfg.land_commit_height_m and not self.descent_hold:
+            # Committed: the descent continues on the prediction. Only from a descent whose gates are all
+            # good: a vehicle that sinks through the commit height while a gate holds the descent (it
+            # lags its held reference) is not committed, and the gates still apply to it.
+            self._committed_since = t
+        if self._committed_since is not None:
+            if t - self._committed_since > self.commit_timeout_s():
+                self._go_around(t, "no touchdown after the commit height")
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
@@ -457,6 +472,18 @@ class Mission:
                 self.descent_hold, self._hold_since = False, None
             if self._hold_since is not None and t - self._hold_since > cfg.land_hold_timeout_s:
                 self._go_around(t, "descent held too long")
+
+    def commit_timeout_s(self) -> float:
+        """How long a committed descent may last without a touchdown (s): ``land_commit_timeout_s``."""
+        cfg = self.config
+        if cfg.land_commit_timeout_s is not None:
+            return cfg.land_commit_timeout_s
+        return 2.0 * cfg.land_commit_height_m / cfg.land_speed_mps + 3.0
+
+    @property
+    def committed(self) -> bool:
+        """True while the descent is committed (below the commit height, entered with every gate good)."""
+        return self._committed_since is not None
 
     def _go_around(self, t: float, reason: str) -> None:
         self.go_arounds += 1
