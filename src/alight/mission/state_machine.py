@@ -104,6 +104,12 @@ class MissionConfig:
     missed the pad (a platform that braked or drove off while the last half metre was flown on the
     prediction) and would otherwise hover beside it for ever. None: twice the time the descent takes from
     the commit height to the pad, plus 3 s for the land detector."""
+    land_commit_speed_change_mps: float = 0.5
+    """A committed descent goes around when the platform estimate's speed has changed by more than this
+    since the commit (m/s), while the vehicle is still above a quarter of the commit height: the platform
+    braked or drove off under the last half metre (the estimator follows a speed change within a few
+    measurements, and the camera may lose the pad right after), and the prediction the descent flies on
+    no longer holds."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -140,6 +146,7 @@ class MissionConfig:
             "land_abort_position_std_m",
             "land_hold_timeout_s",
             "land_commit_timeout_s",
+            "land_commit_speed_change_mps",
             "lost_timeout_s",
             "land_lost_timeout_s",
             "search_timeout_s",
@@ -182,6 +189,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "estimate too uncertain during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
     (Mode.LAND, Mode.GO_AROUND, "no touchdown after the commit height"),
+    (Mode.LAND, Mode.GO_AROUND, "platform speed changed after the commit"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -236,6 +244,7 @@ class Mission:
         self._matched_since: float | None = None
         self._hold_since: float | None = None
         self._committed_since: float | None = None
+        self._committed_speed = 0.0
         self._coasting = False
         self.descent_hold = False
         """True while the descent holds its height (a marginal gate); the guidance reads it."""
@@ -442,9 +451,13 @@ class Mission:
             # good: a vehicle that sinks through the commit height while a gate holds the descent (it
             # lags its held reference) is not committed, and the gates still apply to it.
             self._committed_since = t
+            self._committed_speed = float(np.hypot(target.v_WP[0], target.v_WP[1]))
         if self._committed_since is not None:
+            change = abs(float(np.hypot(target.v_WP[0], target.v_WP[1])) - self._committed_speed)
             if t - self._committed_since > self.commit_timeout_s():
                 self._go_around(t, "no touchdown after the commit height")
+            elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
+                self._go_around(t, "platform speed changed after the commit")
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
