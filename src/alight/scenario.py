@@ -524,6 +524,12 @@ class MissionSpec(_Strict):
     """Go-around when the estimate's horizontal standard deviation exceeds this (m)."""
     land_hold_timeout_s: PositiveFloat | None = None
     """Go-around when the descent has held its height this long (s)."""
+    land_commit_timeout_s: PositiveFloat | None = None
+    """Go-around when the descent has been below the commit height this long without a touchdown (s);
+    none: twice the descent's time from the commit height to the pad, plus 3 s."""
+    land_commit_speed_change_mps: PositiveFloat | None = None
+    """Go-around below the commit height (above a quarter of it) when the platform estimate's speed has
+    changed by more than this since the commit (m/s); default 0.5."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
     land in place."""

@@ -261,6 +261,65 @@ def test_a_marginal_gate_holds_the_descent_then_goes_around() -> None:
     assert status.mode is Mode.GO_AROUND and status.reason == "descent held too long"
 
 
+def test_sinking_through_the_commit_height_during_a_hold_does_not_commit() -> None:
+    """A vehicle that lags its held reference and sinks below the commit height while a gate is marginal
+    (the platform braked) is not committed: the gates still apply, and a bad one goes around."""
+    m = at_mode(Mode.LAND)
+    high = PAD_Z + CFG.land_commit_height_m + 0.1
+    marginal_v = (1.0 + CFG.land_hold_rel_speed_mps + 0.1, 0, 0)
+    assert m.step(3.0, ego(p=(5.0, 0, high), v=marginal_v), target(3.0), None).mode is Mode.LAND
+    assert m.descent_hold
+    low = PAD_Z + CFG.land_commit_height_m - 0.1
+    assert m.step(3.1, ego(p=(5.0, 0, low), v=marginal_v), target(3.1), None).mode is Mode.LAND
+    assert not m.committed and m.descent_hold
+    bad_v = (1.0 + CFG.land_abort_rel_speed_mps + 0.1, 0, 0)
+    status = m.step(3.2, ego(p=(5.0, 0, low), v=bad_v), target(3.2), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "relative velocity too large during the descent"
+    # entered with every gate good, the commit holds whatever the gates say afterwards
+    m = at_mode(Mode.LAND)
+    assert m.step(3.0, ego(p=(5.0, 0, low), v=(1.0, 0, 0)), target(3.0), None).mode is Mode.LAND
+    assert m.committed
+    assert m.step(3.1, ego(p=(5.0, 0, low), v=bad_v), target(3.1), None).mode is Mode.LAND
+
+
+def test_a_committed_descent_without_touchdown_goes_around() -> None:
+    """Below the commit height the descent flies on the prediction; when no touchdown comes (the platform
+    drove off, the vehicle hovers beside it at the descent's floor) it goes around after the timeout."""
+    m = at_mode(Mode.LAND)
+    timeout = m.commit_timeout_s()
+    assert timeout == pytest.approx(2.0 * CFG.land_commit_height_m / CFG.land_speed_mps + 3.0)
+    low = ego(p=(5.0, 0, PAD_Z - 0.3), v=(1.0, 0, 0))
+    assert m.step(3.0, low, target(3.0), None).mode is Mode.LAND and m.committed
+    assert m.step(3.0 + timeout - 0.1, low, target(3.0 + timeout - 0.1, age=5.0), None).mode is Mode.LAND
+    status = m.step(3.0 + timeout + 0.1, low, target(3.0 + timeout + 0.1, age=5.0), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "no touchdown after the commit height"
+    assert m.events[-1].kind == "go_around" and not m.committed
+    assert Mission(MissionConfig(land_commit_timeout_s=2.5)).commit_timeout_s() == 2.5
+
+
+def test_a_platform_speed_change_under_a_committed_descent_goes_around() -> None:
+    """Committed at 1 m/s, the platform estimate then says the platform brakes: above a quarter of the
+    commit height the descent goes around; lower down it continues (the feet are nearly on the deck)."""
+    m = at_mode(Mode.LAND)
+    z = PAD_Z + CFG.land_commit_height_m - 0.05
+    assert m.step(3.0, ego(p=(5.0, 0, z), v=(1.0, 0, 0)), target(3.0), None).mode is Mode.LAND
+    assert m.committed
+    slower = (1.0 - CFG.land_commit_speed_change_mps + 0.1, 0, 0)
+    assert m.step(3.1, ego(p=(5.0, 0, z), v=(1.0, 0, 0)), target(3.1, v=slower), None).mode is Mode.LAND
+    braking = (1.0 - CFG.land_commit_speed_change_mps - 0.1, 0, 0)
+    status = m.step(3.2, ego(p=(5.0, 0, z), v=(1.0, 0, 0)), target(3.2, v=braking), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "platform speed changed after the commit"
+    # a turn changes the velocity's direction, not the speed: no go-around
+    m = at_mode(Mode.LAND)
+    m.step(3.0, ego(p=(5.0, 0, z), v=(1.0, 0, 0)), target(3.0), None)
+    assert m.step(3.5, ego(p=(5.0, 0, z)), target(3.5, v=(0.0, 1.0, 0)), None).mode is Mode.LAND
+    # nearly down: the descent continues
+    m = at_mode(Mode.LAND)
+    m.step(3.0, ego(p=(5.0, 0, z), v=(1.0, 0, 0)), target(3.0), None)
+    low = PAD_Z + 0.2 * CFG.land_commit_height_m
+    assert m.step(3.5, ego(p=(5.0, 0, low)), target(3.5, v=braking), None).mode is Mode.LAND
+
+
 def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> None:
     m = at_mode(Mode.GO_AROUND)
     assert m.go_arounds == 1
@@ -353,6 +412,9 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_land_to_landed_on_the_onboard_touchdown,
         test_land_without_estimate_goes_around,
         test_a_marginal_gate_holds_the_descent_then_goes_around,
+        test_sinking_through_the_commit_height_during_a_hold_does_not_commit,
+        test_a_committed_descent_without_touchdown_goes_around,
+        test_a_platform_speed_change_under_a_committed_descent_goes_around,
         test_go_around_returns_to_track_at_height_and_aborts_after_too_many,
         test_go_around_without_an_estimate_waits_for_the_exploration_altitude,
         test_final_action_hover_climbs_holds_and_completes,

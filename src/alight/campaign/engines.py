@@ -18,8 +18,10 @@ With Dask the sandbox lives inside the Dask worker (one per worker thread, kept 
 start-up costs are paid once per worker); a Dask task never blocks the worker's event loop on a hung
 mission and the Dask worker itself is never killed. A Dask worker that dies anyway is Dask's business
 (it reschedules the task; past ``distributed.scheduler.allowed-failures`` the task fails, which also
-becomes an ``error`` outcome). The engine releases each future as soon as its outcome is here, so a dead
-worker makes Dask fly again only the missions it held, never one already recorded.
+becomes an ``error`` outcome). The engine submits one mission per worker thread at a time and releases
+each future as soon as its outcome is here, so a dead worker makes Dask fly again only the mission it was
+flying (and one it had just finished whose result had not reached the campaign), never one already
+recorded.
 
 A sandbox polls its parent's pid and exits when the parent is gone (a SIGKILLed campaign leaves no
 worker behind for long). A sandbox writes nothing where the campaign keeps its results: the files a
@@ -29,10 +31,13 @@ Dask workers on other machines.
 
 Scratch directories live in one directory per sandbox, ``$TMPDIR/alight-box-<owner pid>-*``, made by the
 process that owns the sandbox. The owner removes it when the sandbox is killed, dies or stops (a
-SIGKILLed sandbox cannot clean up after itself); a sandbox whose owner is gone removes it before exiting;
-and the first sandbox a process starts sweeps the directories whose owner pid is no longer alive (owner
-and sandbox both killed at once, e.g. a Dask worker killed with its process group). The owner's pid, not
-the sandbox's, names the directory, because the owner exists before the sandbox and outlives it.
+SIGKILLed sandbox cannot clean up after itself); a sandbox removes it itself when its socket closes (its
+owner stopped it, or died: a SIGKILLed Dask worker's socket closes at once, and the sandbox, which then
+exits, must not leave that to its parent watcher's next poll); a sandbox whose owner is gone removes it
+before exiting; and the first sandbox a process starts, and every Dask worker when a campaign ends, sweeps
+the directories whose owner pid is no longer alive (owner and sandbox both killed at once, e.g. a Dask
+worker killed with its process group, or before its sandbox learnt the directory's name). The owner's
+pid, not the sandbox's, names the directory, because the owner exists before the sandbox and outlives it.
 
 A sandbox running the default mission function warms up before it reports ready
 (:func:`alight.warmup.warm_up`: a short flight of each of the campaign's presets compiles every numba
@@ -241,6 +246,19 @@ def worker_main(fd: int) -> None:
     except EOFError:
         return
     _watch_parent(os.getppid(), scratch_root)
+    try:
+        _serve(conn, sys_path, fn_name, scratch_root, warmup)
+    finally:
+        # The socket closed: the owner stopped this sandbox, or died (a SIGKILLed Dask worker). This
+        # thread sees that at once, before the parent watcher's next poll, and the process then exits:
+        # remove the scratch directory here, or a dead owner's would stay behind.
+        if scratch_root:
+            shutil.rmtree(scratch_root, ignore_errors=True)
+
+
+def _serve(
+    conn: Connection, sys_path: list[str] | None, fn_name: str, scratch_root: str | None, warmup: list[str]
+) -> None:
     if sys_path:
         sys.path[:] = list(sys_path)
     try:
@@ -267,7 +285,10 @@ def worker_main(fd: int) -> None:
             warmed = {"wall_s": report.wall_s, "compile_s": report.compile_s}
         except Exception as err:  # noqa: BLE001
             warmed = {"error": _one_line(err)}
-    conn.send(("ready", os.getpid(), warmed))
+    try:
+        conn.send(("ready", os.getpid(), warmed))
+    except OSError:  # the owner is gone (BrokenPipeError is an OSError)
+        return
     while True:
         try:
             message = conn.recv()
@@ -634,11 +655,12 @@ class DaskEngine:
     """Missions as Dask tasks: on the scheduler at ``scheduler``, or on an embedded ``LocalCluster``
     of ``workers`` processes (one thread each) when no address is given.
 
-    At most ``2 x`` the cluster's worker threads missions are submitted at a time, and each future is
-    released as soon as its outcome is in this process (before the campaign writes its row). So results
-    do not pile up in worker memory, and when a worker dies Dask recomputes only the missions it was
-    flying, never one already recorded (a held future whose result lived on the dead worker would be
-    flown again)."""
+    At most as many missions as the cluster has worker threads are submitted at a time, and each future
+    is released as soon as its outcome is in this process (before the campaign writes its row). So
+    results do not pile up in worker memory, no worker holds a mission waiting behind the one it flies,
+    and when a worker dies Dask recomputes only the mission it was flying (and one it had finished whose
+    result had not reached this process yet), never one already recorded (a held future whose result
+    lived on the dead worker would be flown again)."""
 
     name = "dask"
 
@@ -712,9 +734,13 @@ class DaskEngine:
         completed = distributed.as_completed()
 
         def top_up() -> None:
-            # Enough queued to keep every worker thread busy (and one more each, so a worker never waits
-            # for the round trip); the cluster may grow or shrink while the campaign runs.
-            window = 2 * max(1, sum(client.nthreads().values()))
+            # One mission per worker thread, no more: what a worker holds when it dies is what Dask flies
+            # again (or fails), so it must be only what it is flying (or has just flown and not yet
+            # handed over). With more futures than threads the scheduler hands a worker extra tasks that
+            # wait there (or in its queue: worker-saturation 1.1 gives a 1-thread worker 2), and a killed
+            # worker took three missions with it. A free thread waits only for one round trip (ms) for
+            # its next mission of tens of seconds. The cluster may grow or shrink while the campaign runs.
+            window = max(1, sum(client.nthreads().values()))
             while todo and len(live) < window:
                 t = todo.popleft()
                 f = client.submit(
@@ -757,6 +783,9 @@ class DaskEngine:
             try:
                 client.cancel(list(live), force=True)
                 client.run(stop_sandboxes)
+                # a worker killed before its sandbox got its scratch directory's name leaves the directory
+                # to whoever sweeps next: every live worker does, now
+                client.run(sweep_stale_scratch)
             except Exception:  # noqa: BLE001  (shutting down; the client may already be gone)
                 pass
             client.close()

@@ -270,7 +270,9 @@ def platform_update_kernel(
 ) -> int:
     """Predict ``x, P`` by ``dt`` to the capture time and update with ``z`` (m,), ``Rz`` (m, m) (eq. 3).
 
-    Results go to ``xo, Po``; ``info[0]`` gets the squared Mahalanobis distance of the innovation. With
+    Results go to ``xo, Po``; ``info[0]`` gets the squared Mahalanobis distance of the innovation, and
+    when ``info`` is long enough, ``info[1 : 1 + m]`` the innovation and the next ``m * m`` its covariance
+    (row-major). With
     ``gate > 0`` a distance above it returns ``REJECTED`` (``xo, Po`` then hold the prediction only).
     ``H`` selects p (and theta), so ``H P`` is rows of ``P``. Joseph form for the same reason as in the
     ego filter: the covariance stays symmetric positive definite under round-off.
@@ -298,6 +300,11 @@ def platform_update_kernel(
     for i in range(m):
         d2 += r[i] * Sr[i, 0]
     info[0] = d2
+    if info.shape[0] >= 1 + m + m * m:  # the innovation and its covariance, for the manoeuvre test
+        for i in range(m):
+            info[1 + i] = r[i]
+            for j in range(m):
+                info[1 + m + i * m + j] = S[i, j]
     if gate > 0.0 and d2 > gate:
         return REJECTED
     Kt = np.empty((m, n))
@@ -508,6 +515,21 @@ class PlatformEkfConfig:
     """Initial turn-rate std (rad/s) with ``use_turn_rate``."""
     max_step: float = 0.05
     """Longest single propagation step (s)."""
+    maneuver_accel_noise: float = 0.0
+    """Tangential acceleration noise while the platform manoeuvres (m/s^2/sqrt(Hz)); 0: off, the fixed
+    ``accel_noise`` of paper 000. The filter detects a manoeuvre (braking, accelerating) when the
+    position innovations of the last ``maneuver_window`` measurements are biased: their sum, which is
+    N(0, sum of their covariances) for a consistent filter, fails the chi-square test (3 dof) at
+    ``maneuver_probability``; it then uses this noise level for at least ``maneuver_hold_s`` (Bar-Shalom,
+    Li, Kirubarajan 2001, Sec. 11.2: an adjustable process noise level, with a whiteness test of the
+    innovations). The measurement that reveals the manoeuvre is fused again with it, so the speed estimate
+    follows a speed change within a few measurements instead of lagging it by a second or more."""
+    maneuver_window: int = 6
+    """Innovations summed for the manoeuvre test."""
+    maneuver_probability: float = 0.999
+    """Chi-square quantile of the manoeuvre test (false alarms with a consistent filter: 1 - this)."""
+    maneuver_hold_s: float = 0.5
+    """The manoeuvre noise level stays this long after the last detection (s)."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -516,6 +538,8 @@ class PlatformEkfConfig:
             "turn_accel_noise",
             "horizontal_noise",
             "vertical_noise",
+            "maneuver_accel_noise",
+            "maneuver_hold_s",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
@@ -541,6 +565,10 @@ class PlatformEkfConfig:
             raise ValueError(f"init_min_measurements must be >= 2, got {self.init_min_measurements}")
         if self.init_max_span < self.init_min_span:
             raise ValueError("init_max_span must be >= init_min_span")
+        if self.maneuver_window < 1:
+            raise ValueError(f"maneuver_window must be >= 1, got {self.maneuver_window}")
+        if not 0.0 < self.maneuver_probability < 1.0:
+            raise ValueError(f"maneuver_probability must be in (0, 1), got {self.maneuver_probability}")
 
     @property
     def state_dim(self) -> int:
@@ -583,6 +611,9 @@ class PlatformEkf:
         n = c.state_dim
         self._n = n
         self._q = c.noise_vector()
+        self._q_maneuver = self._q.copy()
+        self._q_maneuver[0] = max(c.maneuver_accel_noise, c.accel_noise)
+        self._maneuver_gate = float(chdtri(3, 1.0 - c.maneuver_probability))
         self._gate3 = float(chdtri(3, 1.0 - c.gate_probability))
         self._gate4 = float(chdtri(4, 1.0 - c.gate_probability))
         self._yaw_period = 2.0 * math.pi / c.yaw_symmetry
@@ -592,7 +623,7 @@ class PlatformEkf:
         self._Po = np.zeros((n, n))
         self._z = np.zeros(4)
         self._R4 = np.zeros((4, 4))
-        self._info = np.zeros(1)
+        self._info = np.zeros(1 + 5 + 25)
         self.reset()
 
     # ---- lifecycle --------------------------------------------------------------------------------
@@ -624,6 +655,10 @@ class PlatformEkf:
         self._late: list[_Buffered] = []
         self.last_mahalanobis2 = math.nan
         """Squared Mahalanobis distance of the last innovation (chi-square, 3 or 4 dof when consistent)."""
+        self._innovations: list[tuple[FloatArray, FloatArray]] = []
+        self._maneuver_until = -math.inf
+        self.n_maneuvers = 0
+        """Manoeuvres detected (``maneuver_accel_noise``): the noise level went up."""
 
     def set_state(self, t: float, x: FloatArray, P: FloatArray) -> None:
         """Initialise from an external estimate: ``x`` (n,), ``P`` (n, n) at time ``t`` (s)."""
@@ -696,23 +731,14 @@ class PlatformEkf:
             R[3, 3] = yaw_var
         Rm = R if m == 4 else R[0:3, 0:3].copy()
         gate = (self._gate4 if m == 4 else self._gate3) if self.config.gating else 0.0
-        status = platform_update_kernel(
-            self._x,
-            self._P,
-            t - self._t,
-            self._z[:m].copy(),
-            Rm,
-            m,
-            self._q,
-            self.config.max_step,
-            self._yaw_period,
-            gate,
-            not self.config.allow_reverse,
-            self._xo,
-            self._Po,
-            self._info,
-        )
+        z = self._z[:m].copy()
+        maneuvering = t <= self._maneuver_until
+        status = self._update_kernel(t, z, Rm, m, gate, maneuvering)
         self.last_mahalanobis2 = float(self._info[0])
+        if status != NOT_POSITIVE_DEFINITE and self._maneuver_detected(t, m) and not maneuvering:
+            # the measurement that revealed the manoeuvre is fused with the manoeuvre's noise level
+            status = self._update_kernel(t, z, Rm, m, gate, True)
+            self.last_mahalanobis2 = float(self._info[0])
         if status == NOT_POSITIVE_DEFINITE:
             raise EstimationError(f"PlatformEkf.update: innovation covariance not positive definite at t={t}")
         if status == REJECTED:
@@ -730,6 +756,66 @@ class PlatformEkf:
         self._rejected.clear()
         self.n_updates += 1
         return True
+
+    def _update_kernel(
+        self, t: float, z: FloatArray, R: FloatArray, m: int, gate: float, maneuvering: bool
+    ) -> int:
+        q = self._q_maneuver if maneuvering else self._q
+        return int(
+            platform_update_kernel(
+                self._x,
+                self._P,
+                t - self._t,
+                z,
+                R,
+                m,
+                q,
+                self.config.max_step,
+                self._yaw_period,
+                gate,
+                not self.config.allow_reverse,
+                self._xo,
+                self._Po,
+                self._info,
+            )  # fmt: skip
+        )
+
+    def _maneuver_detected(self, t: float, m: int) -> bool:
+        """Record the last innovation's distance; True when the window's sum fails the manoeuvre test
+        (then the manoeuvre noise level holds until ``t + maneuver_hold_s``)."""
+        c = self.config
+        if c.maneuver_accel_noise <= c.accel_noise:
+            return False
+        info = self._info
+        r = info[1:4].copy()
+        S = info[1 + m : 1 + m + m * m].reshape(m, m)[0:3, 0:3].copy()
+        window = self._innovations
+        window.append((r, S))
+        if len(window) > c.maneuver_window:
+            window.pop(0)
+        if len(window) < c.maneuver_window:
+            return False
+        # A consistent filter's innovations are white, zero mean, with covariances S_k: their sum over the
+        # window is N(0, sum S_k). A manoeuvre the model does not have biases them all the same way, so
+        # the sum grows like N while the noise grows like sqrt(N).
+        r_sum = sum((w[0] for w in window), np.zeros(3))
+        S_sum = sum((w[1] for w in window), np.zeros((3, 3)))
+        try:
+            d2 = float(r_sum @ np.linalg.solve(S_sum, r_sum))
+        except np.linalg.LinAlgError:
+            return False
+        if not d2 > self._maneuver_gate:
+            return False
+        if t > self._maneuver_until:
+            self.n_maneuvers += 1
+        self._maneuver_until = t + c.maneuver_hold_s
+        window.clear()
+        return True
+
+    @property
+    def maneuvering(self) -> bool:
+        """True while the manoeuvre noise level is in use (``maneuver_accel_noise``)."""
+        return math.isfinite(self._t) and self._t <= self._maneuver_until
 
     def _note_late(self, meas: _Buffered) -> None:
         """Keep a run of measurements far before the filter's time; a long enough run, in order among
@@ -848,6 +934,7 @@ class PlatformEkf:
     def _reinitialize(self) -> None:
         rejected = self._rejected
         self.n_reinitializations += 1
+        self._innovations.clear()
         self._initialized = False
         self._consecutive_rejections = 0
         self._rejected = []
@@ -938,7 +1025,8 @@ class PlatformEkf:
         excess = abs(dt) - MAX_HORIZON_S
         if excess > 0.0:
             dt = math.copysign(MAX_HORIZON_S, dt)
-        platform_propagate(self._x, self._P, dt, self._q, self.config.max_step, xo, Po)
+        q = self._q_maneuver if self.maneuvering else self._q
+        platform_propagate(self._x, self._P, dt, q, self.config.max_step, xo, Po)
         if excess > 0.0:
             grow = (self.config.init_speed_prior_std * excess) ** 2
             Po[0, 0] += grow

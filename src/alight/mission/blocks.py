@@ -286,6 +286,10 @@ def _field_docs(cls: type) -> dict[str, str]:
 
 
 _PAD_SIZE = {"size_m": "platform.pad_size_m"}
+MANEUVER_ACCEL_NOISE = 2.0
+"""The unicycle EKF's process noise while the platform brakes or accelerates (m/s^2/sqrt(Hz)): a road
+vehicle brakes at up to 8 m/s^2 and accelerates at up to 4 (``platform.speed_profile``'s limits); with the
+fixed 0.1 the speed estimate lagged a 6 m/s^2 stop by a second and the vehicle landed beside the pad."""
 
 BLOCKS: dict[str, dict[str, BlockSpec]] = {
     "camera": {
@@ -438,6 +442,7 @@ BLOCKS: dict[str, dict[str, BlockSpec]] = {
                 # Initialise from sightings up to 4 s apart: while searching, the platform is often seen
                 # in short bursts (a pass of the coverage pattern), and two bursts give its velocity well.
                 "init_max_span": 4.0,
+                "maneuver_accel_noise": MANEUVER_ACCEL_NOISE,
             },
         ),
         "kim_ukf": BlockSpec(

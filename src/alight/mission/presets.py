@@ -110,6 +110,8 @@ _MISSION_OPTIONAL = (
     "land_lost_timeout_s",
     "land_abort_position_std_m",
     "land_hold_timeout_s",
+    "land_commit_timeout_s",
+    "land_commit_speed_change_mps",
     "final_action",
 )
 """Scenario mission keys whose None means the MissionConfig default."""

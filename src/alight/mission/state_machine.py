@@ -106,6 +106,17 @@ class MissionConfig:
     estimator's prediction (m). The camera sees the tag's cross down to about 0.3 m, but a moving pad may
     leave the view in the last half metre (a downward camera cannot see the whole pad from closer than
     about its own size: paper 000's reason for the model-based filter)."""
+    land_commit_timeout_s: float | None = None
+    """A descent that has been below the commit height this long without a touchdown goes around (s): it
+    missed the pad (a platform that braked or drove off while the last half metre was flown on the
+    prediction) and would otherwise hover beside it for ever. None: twice the time the descent takes from
+    the commit height to the pad, plus 3 s for the land detector."""
+    land_commit_speed_change_mps: float = 0.5
+    """A committed descent goes around when the platform estimate's speed has changed by more than this
+    since the commit (m/s), while the vehicle is still above a quarter of the commit height: the platform
+    braked or drove off under the last half metre (the estimator follows a speed change within a few
+    measurements, and the camera may lose the pad right after), and the prediction the descent flies on
+    no longer holds."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -143,6 +154,8 @@ class MissionConfig:
             "land_abort_rel_speed_mps",
             "land_abort_position_std_m",
             "land_hold_timeout_s",
+            "land_commit_timeout_s",
+            "land_commit_speed_change_mps",
             "lost_timeout_s",
             "land_lost_timeout_s",
             "search_timeout_s",
@@ -150,7 +163,7 @@ class MissionConfig:
         )
         for name in positive:
             value = getattr(self, name)
-            if value is None and name == "takeoff_altitude_m":
+            if value is None and name in ("takeoff_altitude_m", "land_commit_timeout_s"):
                 continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
@@ -188,6 +201,8 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "relative velocity too large during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "estimate too uncertain during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
+    (Mode.LAND, Mode.GO_AROUND, "no touchdown after the commit height"),
+    (Mode.LAND, Mode.GO_AROUND, "platform speed changed after the commit"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -241,6 +256,8 @@ class Mission:
         self._t_start: float | None = None
         self._matched_since: float | None = None
         self._hold_since: float | None = None
+        self._committed_since: float | None = None
+        self._committed_speed = 0.0
         self._coasting = False
         self.descent_hold = False
         """True while the descent holds its height (a marginal gate); the guidance reads it."""
@@ -260,6 +277,7 @@ class Mission:
         self.mode, self.mode_since, self.reason = mode, t, reason
         self._matched_since = None
         self._hold_since = None
+        self._committed_since = None
         self.descent_hold = False
         self.history.append((t, mode, reason))
 
@@ -441,8 +459,18 @@ class Mission:
             self._go_around(t, "target lost during the descent")
             return
         height = float(ego.p_WB[2] - target.p_WP[2])
-        if height <= cfg.land_commit_height_m:
-            self.descent_hold = False  # committed: the descent continues on the prediction
+        if self._committed_since is None and height <= cfg.land_commit_height_m and not self.descent_hold:
+            # Committed: the descent continues on the prediction. Only from a descent whose gates are all
+            # good: a vehicle that sinks through the commit height while a gate holds the descent (it
+            # lags its held reference) is not committed, and the gates still apply to it.
+            self._committed_since = t
+            self._committed_speed = float(np.hypot(target.v_WP[0], target.v_WP[1]))
+        if self._committed_since is not None:
+            change = abs(float(np.hypot(target.v_WP[0], target.v_WP[1])) - self._committed_speed)
+            if t - self._committed_since > self.commit_timeout_s():
+                self._go_around(t, "no touchdown after the commit height")
+            elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
+                self._go_around(t, "platform speed changed after the commit")
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
@@ -470,6 +498,18 @@ class Mission:
                 self.descent_hold, self._hold_since = False, None
             if self._hold_since is not None and t - self._hold_since > cfg.land_hold_timeout_s:
                 self._go_around(t, "descent held too long")
+
+    def commit_timeout_s(self) -> float:
+        """How long a committed descent may last without a touchdown (s): ``land_commit_timeout_s``."""
+        cfg = self.config
+        if cfg.land_commit_timeout_s is not None:
+            return cfg.land_commit_timeout_s
+        return 2.0 * cfg.land_commit_height_m / cfg.land_speed_mps + 3.0
+
+    @property
+    def committed(self) -> bool:
+        """True while the descent is committed (below the commit height, entered with every gate good)."""
+        return self._committed_since is not None
 
     def _go_around(self, t: float, reason: str) -> None:
         self.go_arounds += 1
