@@ -113,16 +113,19 @@ _MISSION_OPTIONAL = (
 """Scenario mission keys whose None means the MissionConfig default."""
 
 
+def _mission_value(s: Any, eff: EffectiveBlocks, key: str) -> Any:
+    """A mission key as it flies: the scenario's, or where it leaves it None the preset's (its data's
+    ``mission:`` section, checked by the scenario), or None: the block's default."""
+    value = getattr(s.mission, key)
+    return eff.mission.get(key) if value is None else value
+
+
 def _mission_config(s: Any, eff: EffectiveBlocks, hover_thrust_N: float) -> MissionConfig:
-    m = s.mission
-    land_speed = float(eff.mission.get("land_speed_mps", 0.4))
-    td = {k: v for k, v in m.touchdown.model_dump().items() if v is not None}
-    optional = {k: getattr(m, k) for k in _MISSION_OPTIONAL if getattr(m, k) is not None}
-    return MissionConfig(
-        land_speed_mps=land_speed if m.land_speed_mps is None else m.land_speed_mps,
-        touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td),
-        **optional,
-    )
+    td = dict(eff.mission.get("touchdown") or {})
+    td.update({k: v for k, v in s.mission.touchdown.model_dump().items() if v is not None})
+    keys = ("land_speed_mps", *_MISSION_OPTIONAL)
+    optional = {k: v for k in keys if (v := _mission_value(s, eff, k)) is not None}
+    return MissionConfig(touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td), **optional)
 
 
 def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
@@ -241,17 +244,14 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
             search_pattern=s.mission.search_pattern,
             aim_camera=s.mission.aim_camera,
-            intercept=s.mission.intercept,
-            adaptive_horizon=s.mission.adaptive_horizon,
-            no_feasible=s.mission.no_feasible,
-            max_platform_speed_mps=s.mission.max_platform_speed_mps,
+            max_platform_speed_mps=_mission_value(s, eff, "max_platform_speed_mps"),
             max_tilt_rad=airframe.max_tilt_rad,
             rotor_drag_per_s=airframe.rotor_drag[0],
-            **(
-                {}
-                if s.mission.search_speed_uncertainty_mps is None
-                else {"search_speed_uncertainty_mps": s.mission.search_speed_uncertainty_mps}
-            ),
+            **{
+                k: v
+                for k in ("intercept", "adaptive_horizon", "no_feasible", "search_speed_uncertainty_mps")
+                if (v := _mission_value(s, eff, k)) is not None
+            },
         ),
     )
     controller = _controller(airframe, eff)
@@ -288,6 +288,13 @@ def effective_config(scenario: Any) -> dict[str, Any]:
     out: dict[str, Any] = scenario.model_dump(mode="json")
     out["blocks"] = eff.as_dict()
     out["preset_mission"] = dict(eff.mission)
+    # the mission keys as they fly: the preset's defaults where the scenario leaves None
+    for key, value in eff.mission.items():
+        if key == "touchdown":
+            td = out["mission"]["touchdown"]
+            td.update({k: v for k, v in value.items() if td.get(k) is None})
+        elif key in out["mission"] and out["mission"][key] is None:
+            out["mission"][key] = value
     return out
 
 
