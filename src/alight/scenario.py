@@ -647,12 +647,12 @@ class ControllerSpec(_Strict):
     integral_gain: Annotated[float, Field(ge=0, le=1000.0, allow_inf_nan=False)] | None = None
     """Integral gain on the position error per axis (1/s^3), as an autopilot's position loop has; None:
     the preset's (off for ``falanga2017``/``groundtruth``/``kim_kaist``, 2.0 for ``zamanakos_sdu``, which
-    flies on PX4's integrating loops). Must be below kp * kv = 2 * bandwidth^3 of the position loop."""
+    flies on PX4's integrating loops, and for ``alight``). Must be below kp * kv = 2 * bandwidth^3 of the position loop."""
     integral_limit_mps2: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
     """Largest acceleration the integral may command per axis (m/s^2; block default 6.0)."""
     l1_adaptive: bool | None = None
     """L1 adaptive augmentation of the outer loop (paper 003): true picks the controller ``faessler_l1``,
-    false ``faessler``; None: the preset's (on for ``kim_kaist``, off otherwise)."""
+    false ``faessler``; None: the preset's (on for ``kim_kaist`` and ``alight``, off otherwise)."""
 
 
 BlockEntry = str | dict[str, Any]
@@ -731,8 +731,8 @@ class Scenario(_Strict):
     """One mission."""
 
     preset: str = "groundtruth"
-    """A packaged preset (``mission/preset_data``): ``groundtruth``, ``falanga2017``, ``kim_kaist``,
-    ``zamanakos_sdu``."""
+    """A packaged preset (``mission/preset_data``): ``alight`` (this project's own composition),
+    ``groundtruth``, ``falanga2017``, ``kim_kaist``, ``zamanakos_sdu``."""
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     duration_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] = 120.0
     """Simulated time limit of the mission (s), at most :data:`MAX_DURATION_S` (3600)."""
