@@ -520,6 +520,9 @@ class MissionSpec(_Strict):
     """Go-around when the estimate's horizontal standard deviation exceeds this (m)."""
     land_hold_timeout_s: PositiveFloat | None = None
     """Go-around when the descent has held its height this long (s)."""
+    land_commit_timeout_s: PositiveFloat | None = None
+    """Go-around when a descent below the commit height has not touched down after this long (s): its
+    prediction has left the pad. None: the preset's (6 s for ``alight``), else no limit."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
     land in place."""
@@ -647,7 +650,8 @@ class ControllerSpec(_Strict):
     integral_gain: Annotated[float, Field(ge=0, le=1000.0, allow_inf_nan=False)] | None = None
     """Integral gain on the position error per axis (1/s^3), as an autopilot's position loop has; None:
     the preset's (off for ``falanga2017``/``groundtruth``/``kim_kaist``, 2.0 for ``zamanakos_sdu``, which
-    flies on PX4's integrating loops, and for ``alight``). Must be below kp * kv = 2 * bandwidth^3 of the position loop."""
+    flies on PX4's integrating loops, and for ``alight``). Must be below kp * kv = 2 * bandwidth^3 of the
+    position loop."""
     integral_limit_mps2: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
     """Largest acceleration the integral may command per axis (m/s^2; block default 6.0)."""
     l1_adaptive: bool | None = None

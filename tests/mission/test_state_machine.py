@@ -3,6 +3,8 @@ nothing else moves, and every failsafe records its event."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -261,6 +263,25 @@ def test_a_marginal_gate_holds_the_descent_then_goes_around() -> None:
     assert status.mode is Mode.GO_AROUND and status.reason == "descent held too long"
 
 
+def test_a_committed_descent_without_touchdown_goes_around_after_its_timeout() -> None:
+    low = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.3), v=(1.0, 0, -0.4))
+    # off by default: a committed descent continues on the prediction however long it takes
+    m = at_mode(Mode.LAND)
+    for t in (3.0, 10.0, 60.0):
+        assert m.step(t, low, target(t, age=5.0), None).mode is Mode.LAND
+    cfg = dataclasses.replace(CFG, land_commit_timeout_s=4.0)
+    m = at_mode(Mode.LAND, cfg)
+    assert m.step(3.0, low, target(3.0, age=5.0), None).mode is Mode.LAND  # committed at 3.0
+    assert m.step(6.9, low, target(6.9, age=5.0), None).mode is Mode.LAND
+    status = m.step(7.1, low, target(7.1, age=5.0), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "no touchdown after committing"
+    assert m.events[-1].kind == "go_around"
+    # a touchdown inside the timeout lands
+    m = at_mode(Mode.LAND, cfg)
+    m.step(3.0, low, target(3.0), None)
+    assert m.step(6.5, low, target(6.5), None, touchdown=True).mode is Mode.LANDED
+
+
 def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> None:
     m = at_mode(Mode.GO_AROUND)
     assert m.go_arounds == 1
@@ -353,6 +374,7 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_land_to_landed_on_the_onboard_touchdown,
         test_land_without_estimate_goes_around,
         test_a_marginal_gate_holds_the_descent_then_goes_around,
+        test_a_committed_descent_without_touchdown_goes_around_after_its_timeout,
         test_go_around_returns_to_track_at_height_and_aborts_after_too_many,
         test_go_around_without_an_estimate_waits_for_the_exploration_altitude,
         test_final_action_hover_climbs_holds_and_completes,

@@ -108,6 +108,7 @@ _MISSION_OPTIONAL = (
     "land_lost_timeout_s",
     "land_abort_position_std_m",
     "land_hold_timeout_s",
+    "land_commit_timeout_s",
     "final_action",
 )
 """Scenario mission keys whose None means the MissionConfig default."""

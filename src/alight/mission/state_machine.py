@@ -14,7 +14,8 @@ Paper 000 has four states: takeoff, exploration, platform tracking, landing. We 
   long, horizontal offset, relative velocity, estimator consistency): climb back to the tracking height
   above the predicted platform while following it, then track again. Below ``land_commit_height_m`` the
   descent continues on the prediction (a downward camera cannot see the whole pad from closer than about
-  its size); while a gate is only marginal the descent holds its height (``descent_hold``).
+  its size), for at most ``land_commit_timeout_s`` when that is set; while a gate is only marginal the
+  descent holds its height (``descent_hold``).
 - ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
   budget is spent. ABORT performs the ``final_action``: ``hover`` (climb to the exploration altitude and
   hold), ``return`` (fly to the take-off point at the exploration altitude and land there) or
@@ -99,6 +100,11 @@ class MissionConfig:
     estimator's prediction (m). The camera sees the tag's cross down to about 0.3 m, but a moving pad may
     leave the view in the last half metre (a downward camera cannot see the whole pad from closer than
     about its own size: paper 000's reason for the model-based filter)."""
+    land_commit_timeout_s: float | None = None
+    """Go-around when a committed descent (below ``land_commit_height_m``) has not touched down after
+    this long (s): the prediction it continues on has left the pad (a platform leaving a turn, seen last
+    in it), and the vehicle would otherwise follow it down beside the deck until the mission times out.
+    None: no limit (paper 000's descent)."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -134,6 +140,7 @@ class MissionConfig:
             "land_abort_rel_speed_mps",
             "land_abort_position_std_m",
             "land_hold_timeout_s",
+            "land_commit_timeout_s",
             "lost_timeout_s",
             "land_lost_timeout_s",
             "search_timeout_s",
@@ -141,7 +148,7 @@ class MissionConfig:
         )
         for name in positive:
             value = getattr(self, name)
-            if value is None and name == "takeoff_altitude_m":
+            if value is None and name in ("takeoff_altitude_m", "land_commit_timeout_s"):
                 continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
@@ -175,6 +182,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "relative velocity too large during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "estimate too uncertain during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
+    (Mode.LAND, Mode.GO_AROUND, "no touchdown after committing"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -228,6 +236,7 @@ class Mission:
         self._t_start: float | None = None
         self._matched_since: float | None = None
         self._hold_since: float | None = None
+        self._committed_since: float | None = None
         self._coasting = False
         self.descent_hold = False
         """True while the descent holds its height (a marginal gate); the guidance reads it."""
@@ -247,6 +256,7 @@ class Mission:
         self.mode, self.mode_since, self.reason = mode, t, reason
         self._matched_since = None
         self._hold_since = None
+        self._committed_since = None
         self.descent_hold = False
         self.history.append((t, mode, reason))
 
@@ -430,6 +440,11 @@ class Mission:
         height = float(ego.p_WB[2] - target.p_WP[2])
         if height <= cfg.land_commit_height_m:
             self.descent_hold = False  # committed: the descent continues on the prediction
+            if self._committed_since is None:
+                self._committed_since = t
+            timeout = cfg.land_commit_timeout_s
+            if timeout is not None and t - self._committed_since > timeout:
+                self._go_around(t, "no touchdown after committing")
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
