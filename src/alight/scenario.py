@@ -523,6 +523,10 @@ class MissionSpec(_Strict):
     land_commit_timeout_s: PositiveFloat | None = None
     """Go-around when a descent below the commit height has not touched down after this long (s): its
     prediction has left the pad. None: the preset's (6 s for ``alight``), else no limit."""
+    land_commit_ground_margin_m: PositiveFloat | None = None
+    """Go-around when, below the commit height, the range finder reads more than this beyond the height
+    over the estimated deck: the ground is below, not the deck (m). None: the preset's (0.2 m for
+    ``alight``), else off."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
     land in place."""

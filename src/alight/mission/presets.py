@@ -109,6 +109,7 @@ _MISSION_OPTIONAL = (
     "land_abort_position_std_m",
     "land_hold_timeout_s",
     "land_commit_timeout_s",
+    "land_commit_ground_margin_m",
     "final_action",
 )
 """Scenario mission keys whose None means the MissionConfig default."""

@@ -14,7 +14,8 @@ Paper 000 has four states: takeoff, exploration, platform tracking, landing. We 
   long, horizontal offset, relative velocity, estimator consistency): climb back to the tracking height
   above the predicted platform while following it, then track again. Below ``land_commit_height_m`` the
   descent continues on the prediction (a downward camera cannot see the whole pad from closer than about
-  its size), for at most ``land_commit_timeout_s`` when that is set; while a gate is only marginal the
+  its size), for at most ``land_commit_timeout_s`` and while the range finder does not see the ground
+  beside the deck (``land_commit_ground_margin_m``), when those are set; while a gate is only marginal the
   descent holds its height (``descent_hold``).
 - ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
   budget is spent. ABORT performs the ``final_action``: ``hover`` (climb to the exploration altitude and
@@ -105,6 +106,11 @@ class MissionConfig:
     this long (s): the prediction it continues on has left the pad (a platform leaving a turn, seen last
     in it), and the vehicle would otherwise follow it down beside the deck until the mission times out.
     None: no limit (paper 000's descent)."""
+    land_commit_ground_margin_m: float | None = None
+    """Go-around when, in a committed descent, the range finder (from the feet) reads more than this
+    beyond the body's height over the estimated deck (m): the surface below is lower than the deck, the
+    prediction has left the pad and the vehicle would land beside it. It needs a deck higher than the
+    margin plus the gear. None: off (paper 000's descent)."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -141,6 +147,7 @@ class MissionConfig:
             "land_abort_position_std_m",
             "land_hold_timeout_s",
             "land_commit_timeout_s",
+            "land_commit_ground_margin_m",
             "lost_timeout_s",
             "land_lost_timeout_s",
             "search_timeout_s",
@@ -148,7 +155,11 @@ class MissionConfig:
         )
         for name in positive:
             value = getattr(self, name)
-            if value is None and name in ("takeoff_altitude_m", "land_commit_timeout_s"):
+            if value is None and name in (
+                "takeoff_altitude_m",
+                "land_commit_timeout_s",
+                "land_commit_ground_margin_m",
+            ):
                 continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
@@ -183,6 +194,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "estimate too uncertain during the descent"),
     (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
     (Mode.LAND, Mode.GO_AROUND, "no touchdown after committing"),
+    (Mode.LAND, Mode.GO_AROUND, "ground below the committed descent"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -359,7 +371,7 @@ class Mission:
                 self._go(t, Mode.EXPLORE, "search around the prediction timed out")
 
         elif mode is Mode.LAND:
-            self._step_land(t, ego, target, age, over_budget, touchdown)
+            self._step_land(t, ego, target, age, over_budget, touchdown, range_m)
 
         elif mode is Mode.GO_AROUND:
             if self.go_arounds > cfg.max_go_arounds:
@@ -426,6 +438,7 @@ class Mission:
         age: float,
         over_budget: bool,
         touchdown: bool,
+        range_m: float | None = None,
     ) -> None:
         cfg = self.config
         if touchdown:
@@ -443,8 +456,13 @@ class Mission:
             if self._committed_since is None:
                 self._committed_since = t
             timeout = cfg.land_commit_timeout_s
+            margin = cfg.land_commit_ground_margin_m
             if timeout is not None and t - self._committed_since > timeout:
                 self._go_around(t, "no touchdown after committing")
+            elif margin is not None and range_m is not None and range_m > height + margin:
+                # the range from the feet exceeds the body's height over the estimated deck: the surface
+                # below is lower than the deck (the ground beside it)
+                self._go_around(t, "ground below the committed descent")
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
