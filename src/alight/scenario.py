@@ -26,6 +26,8 @@ axis, altitudes and heights <= 1000 m, latencies <= 10 s, rates <= 1000 Hz, dist
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -530,6 +532,10 @@ class MissionSpec(_Strict):
     land_commit_speed_change_mps: PositiveFloat | None = None
     """Go-around below the commit height (above a quarter of it) when the platform estimate's speed has
     changed by more than this since the commit (m/s); default 0.5."""
+    land_commit_ground_margin_m: PositiveFloat | None = None
+    """Go-around when, below the commit height, the range finder reads more than this beyond the height
+    over the estimated deck: the ground is below, not the deck (m). None: the preset's (0.2 m for
+    ``alight``), else off."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
     land in place."""
@@ -543,19 +549,74 @@ class MissionSpec(_Strict):
     the body, follows it: holding position in a side wind tilts the vehicle and its view moves
     ``h tan(tilt)`` downwind (mission/README.md has the measurements). False flies the body on the
     pattern, as papers 000 and 004 do."""
-    intercept: bool = False
+    intercept: bool | None = None
     """Fly to meet the platform's predicted path at the earliest point the vehicle can reach at its top
     speed (from the airframe), instead of chasing it (planning/envelope.py); for a fast platform, with
-    ``platform.telemetry``. False: paper 000's tracking."""
-    adaptive_horizon: bool = False
+    ``platform.telemetry``. False: paper 000's tracking. None: the preset's (on for ``alight``), else
+    false."""
+    adaptive_horizon: bool | None = None
     """Size the candidates' horizon from the distance to cover and the airframe's acceleration instead of
-    ``planner.horizon_min_s``/``horizon_max_s`` alone."""
-    no_feasible: Literal["keep", "extend"] = "keep"
+    ``planner.horizon_min_s``/``horizon_max_s`` alone. None: the preset's (on for ``alight``), else
+    false."""
+    no_feasible: Literal["keep", "extend"] | None = None
     """When no candidate is feasible: ``keep`` the plan being flown (paper 000), or ``extend`` the horizon
-    (doubling, three times) and then fly the longest candidate with the inputs clipped."""
+    (doubling, three times) and then fly the longest candidate with the inputs clipped. None: the
+    preset's (``extend`` for ``alight``), else ``keep``."""
     max_platform_speed_mps: NonNegFloat | None = None
     """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
-    take-off, and a search after a sighting is centred on the prediction. None: the fixed search area."""
+    take-off, and a search after a sighting is centred on the prediction. None: the preset's (``alight``
+    sets one), else the fixed search area."""
+
+
+PRESET_ONLY_MISSION_KEYS = ("coverage_fov_deg",)
+"""Keys of a preset's ``mission:`` section that are not scenario keys: ``coverage_fov_deg``, the field of
+view that spaces the exploration pattern (deg, or ``camera`` / ``perception``)."""
+
+
+def _preset_mission_keys() -> tuple[str, ...]:
+    """The scenario mission keys a preset may set defaults for: those whose scenario default is None (the
+    scenario holds overrides only), and the land detector's (``touchdown``)."""
+    return tuple(
+        name
+        for name, f in MissionSpec.model_fields.items()
+        if name == "touchdown" or f.get_default(call_default_factory=True) is None
+    )
+
+
+@cache
+def preset_mission_defaults(name: str) -> Mapping[str, Any]:
+    """A preset's ``mission:`` defaults (``mission/preset_data/<name>.yaml``), checked as a scenario's
+    mission section is: the values a mission flies where its scenario leaves a key None. ``ValueError``
+    with one line naming the preset's key for a key a preset cannot set or a bad value."""
+    from alight.mission.blocks import preset_data
+
+    data = preset_data(name).get("mission") or {}
+    where = f"preset {name}: mission"
+    if not isinstance(data, Mapping):
+        raise ValueError(f"{where}: expected a mapping, got {data!r}")
+    allowed = _preset_mission_keys()
+    for key in data:
+        if key not in allowed and key not in PRESET_ONLY_MISSION_KEYS:
+            raise ValueError(
+                f"{where}.{key}: not a key a preset sets (it may set: {', '.join(allowed)}, "
+                f"{', '.join(PRESET_ONLY_MISSION_KEYS)})"
+            )
+    fov = data.get("coverage_fov_deg", "camera")
+    if fov not in ("camera", "perception") and not (
+        isinstance(fov, int | float) and not isinstance(fov, bool) and 0 < fov <= 180
+    ):
+        raise ValueError(f"{where}.coverage_fov_deg: expected camera, perception or 0-180 deg, got {fov!r}")
+    given = {k: v for k, v in data.items() if k not in PRESET_ONLY_MISSION_KEYS}
+    try:
+        spec = MissionSpec.model_validate(given)
+    except ValidationError as err:
+        first = err.errors()[0]
+        key = ".".join(str(p) for p in first["loc"])
+        raise ValueError(f"{where}.{key}: {first['msg']}") from None
+    out: dict[str, Any] = {k: getattr(spec, k) for k in given if k != "touchdown"}
+    if "touchdown" in given:
+        out["touchdown"] = spec.touchdown.model_dump(exclude_none=True)
+    return out
 
 
 class PlannerSpec(_Strict):
@@ -602,12 +663,13 @@ class ControllerSpec(_Strict):
     integral_gain: Annotated[float, Field(ge=0, le=1000.0, allow_inf_nan=False)] | None = None
     """Integral gain on the position error per axis (1/s^3), as an autopilot's position loop has; None:
     the preset's (off for ``falanga2017``/``groundtruth``/``kim_kaist``, 2.0 for ``zamanakos_sdu``, which
-    flies on PX4's integrating loops). Must be below kp * kv = 2 * bandwidth^3 of the position loop."""
+    flies on PX4's integrating loops, and for ``alight``). Must be below kp * kv = 2 * bandwidth^3 of the
+    position loop."""
     integral_limit_mps2: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] | None = None
     """Largest acceleration the integral may command per axis (m/s^2; block default 6.0)."""
     l1_adaptive: bool | None = None
     """L1 adaptive augmentation of the outer loop (paper 003): true picks the controller ``faessler_l1``,
-    false ``faessler``; None: the preset's (on for ``kim_kaist``, off otherwise)."""
+    false ``faessler``; None: the preset's (on for ``kim_kaist`` and ``alight``, off otherwise)."""
 
 
 BlockEntry = str | dict[str, Any]
@@ -686,8 +748,8 @@ class Scenario(_Strict):
     """One mission."""
 
     preset: str = "groundtruth"
-    """A packaged preset (``mission/preset_data``): ``groundtruth``, ``falanga2017``, ``kim_kaist``,
-    ``zamanakos_sdu``."""
+    """A packaged preset (``mission/preset_data``): ``alight`` (this project's own composition),
+    ``groundtruth``, ``falanga2017``, ``kim_kaist``, ``zamanakos_sdu``."""
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     duration_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] = 120.0
     """Simulated time limit of the mission (s), at most :data:`MAX_DURATION_S` (3600)."""
@@ -719,6 +781,7 @@ class Scenario(_Strict):
         from alight.mission.blocks import resolve_blocks
 
         resolve_blocks(self)
+        preset_mission_defaults(self.preset)
         return self
 
     @field_validator("airframe")

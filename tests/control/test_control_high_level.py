@@ -254,8 +254,11 @@ def test_a_lowered_tilt_limit_bounds_the_desired_attitude_and_is_undone(limit_de
         assert math.degrees(math.acos(R_des[2, 2])) == pytest.approx(limit_deg, abs=1e-9)
         ctl.set_tilt_limit(None)
         ctl.reset()
-        assert ctl.command(ego, ref).w_WB_B_cmd.tolist() == type(ctl)(
-            *([HighLevelController(AF)] if isinstance(ctl, L1AugmentedController) else [AF])
-        ).command(ego, ref).w_WB_B_cmd.tolist()
+        assert (
+            ctl.command(ego, ref).w_WB_B_cmd.tolist()
+            == type(ctl)(*([HighLevelController(AF)] if isinstance(ctl, L1AugmentedController) else [AF]))
+            .command(ego, ref)
+            .w_WB_B_cmd.tolist()
+        )
     with pytest.raises(ValueError, match="max_tilt_rad"):
         HighLevelController(AF).set_tilt_limit(math.pi / 2)

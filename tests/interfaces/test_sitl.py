@@ -20,6 +20,7 @@ from tests_interfaces_ports import free_port_pair  # noqa: E402
 
 from alight.airframe import DEFAULT_AIRFRAME  # noqa: E402
 from alight.airframes import load_airframe  # noqa: E402
+from alight.evaluation.world import World  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.sitl import (  # noqa: E402
     EmulatedAutopilot,
@@ -29,7 +30,6 @@ from alight.interfaces.sitl import (  # noqa: E402
     encode_mode,
     position_control,
 )
-from alight.evaluation.world import World  # noqa: E402
 from alight.scenario import Scenario  # noqa: E402
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V  # noqa: E402
 from alight.types import quat_to_rotmat  # noqa: E402
@@ -52,7 +52,8 @@ def test_mode_numbers_round_trip(flavour: str) -> None:
 
 
 def test_position_controller_takes_off_and_holds_a_point() -> None:
-    world = World.for_scenario(Scenario.model_validate({"preset": "groundtruth", "duration_s": 10.0, "seed": 2}))
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 10.0, "seed": 2})
+    world = World.for_scenario(scenario)
     goal = np.array([1.0, -1.0, 3.0])
     for k in range(8 * 200):
         if k % 2 == 0:

@@ -113,13 +113,64 @@ def test_a_wrong_block_choice_is_one_line_and_exit_2(
 
 
 def test_every_packaged_preset_names_a_known_block_for_every_stage() -> None:
-    assert set(preset_names()) == {"falanga2017", "groundtruth", "kim_kaist", "zamanakos_sdu"}
+    assert set(preset_names()) == {"alight", "falanga2017", "groundtruth", "kim_kaist", "zamanakos_sdu"}
     for name in preset_names():
         blocks = preset_data(name)["blocks"]
         assert set(blocks) == set(STAGES), name
         eff = resolve_blocks(scenario_from_dict({"preset": name}))
         for stage in STAGES:
             assert eff[stage].name in BLOCKS[stage]
+
+
+def _flown(scenario: dict[str, Any]) -> Any:
+    """The pipeline the scenario flies (its mission config and guidance config)."""
+    s = scenario_from_dict(scenario)
+    p = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
+    return p.mission.config, p.guidance.config
+
+
+def test_a_presets_mission_section_sets_the_mission_defaults_and_the_scenario_overrides_them() -> None:
+    # the alight preset carries the opt-in mission keys as its defaults
+    m, g = _flown({"preset": "alight"})
+    assert (g.intercept, g.adaptive_horizon, g.no_feasible) == (True, True, "extend")
+    assert g.max_platform_speed_mps == preset_data("alight")["mission"]["max_platform_speed_mps"]
+    assert m.touchdown.level_to == "steady" and m.touchdown.max_vertical_speed_mps == 0.5
+    # a scenario's key wins over the preset's, key by key (the touchdown section too)
+    m, g = _flown(
+        {
+            "preset": "alight",
+            "mission": {"intercept": False, "no_feasible": "keep", "touchdown": {"level_to": "vertical"}},
+        }
+    )
+    assert (g.intercept, g.adaptive_horizon, g.no_feasible) == (False, True, "keep")
+    assert m.touchdown.level_to == "vertical" and m.touchdown.max_vertical_speed_mps == 0.5
+    # the paper presets set none of them: the blocks' defaults, as before
+    for name in ("falanga2017", "groundtruth", "kim_kaist", "zamanakos_sdu"):
+        m, g = _flown({"preset": name})
+        assert (g.intercept, g.adaptive_horizon, g.no_feasible) == (False, False, "keep"), name
+        assert g.max_platform_speed_mps is None and m.touchdown.level_to == "vertical", name
+    assert _flown({"preset": "kim_kaist"})[0].land_speed_mps == 0.1
+
+
+@pytest.mark.parametrize(
+    ("mission", "key"),
+    [
+        ({"aim_camera": False}, "mission.aim_camera"),  # a key whose scenario default is not None
+        ({"bogus": 1}, "mission.bogus"),
+        ({"no_feasible": "retry"}, "mission.no_feasible"),
+        ({"touchdown": {"level_to": "sideways"}}, "mission.touchdown.level_to"),
+        ({"coverage_fov_deg": "wide"}, "mission.coverage_fov_deg"),
+    ],
+)
+def test_a_bad_preset_mission_section_is_refused_naming_the_key(
+    monkeypatch: pytest.MonkeyPatch, mission: dict[str, Any], key: str
+) -> None:
+    from alight.mission import blocks
+    from alight.scenario import preset_mission_defaults
+
+    monkeypatch.setattr(blocks, "preset_data", lambda name: {"blocks": {}, "mission": mission})
+    with pytest.raises(ValueError, match=rf"^preset broken: {key}"):
+        preset_mission_defaults.__wrapped__("broken")
 
 
 def test_scenario_blocks_override_the_presets_and_keep_their_parameters() -> None:

@@ -3,6 +3,8 @@ nothing else moves, and every failsafe records its event."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -320,6 +322,24 @@ def test_a_platform_speed_change_under_a_committed_descent_goes_around() -> None
     assert m.step(3.5, ego(p=(5.0, 0, low)), target(3.5, v=braking), None).mode is Mode.LAND
 
 
+def test_a_committed_descent_over_the_ground_beside_the_deck_goes_around() -> None:
+    height = CFG.land_commit_height_m - 0.2  # body over the estimated deck, committed
+    low = ego(p=(5.0, 0, PAD_Z + height), v=(1.0, 0, -0.4))
+    over_deck, beside = height - 0.1, height + PAD_Z - 0.1  # the range from feet 0.1 m below the body
+    cfg = dataclasses.replace(CFG, land_commit_ground_margin_m=0.2)
+    m = at_mode(Mode.LAND, cfg)
+    assert m.step(3.0, low, target(3.0), over_deck).mode is Mode.LAND
+    assert m.step(3.1, low, target(3.1), None).mode is Mode.LAND  # no reading: no evidence
+    status = m.step(3.2, low, target(3.2), beside)
+    assert status.mode is Mode.GO_AROUND and status.reason == "ground below the committed descent"
+    # off by default; and above the commit height the descent's gates decide, not the range
+    m = at_mode(Mode.LAND)
+    assert m.step(3.0, low, target(3.0), beside).mode is Mode.LAND
+    m = at_mode(Mode.LAND, cfg)
+    high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5), v=(1.0, 0, -0.4))
+    assert m.step(3.0, high, target(3.0), CFG.land_commit_height_m + 0.5 + PAD_Z).mode is Mode.LAND
+
+
 def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> None:
     m = at_mode(Mode.GO_AROUND)
     assert m.go_arounds == 1
@@ -415,6 +435,7 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_sinking_through_the_commit_height_during_a_hold_does_not_commit,
         test_a_committed_descent_without_touchdown_goes_around,
         test_a_platform_speed_change_under_a_committed_descent_goes_around,
+        test_a_committed_descent_over_the_ground_beside_the_deck_goes_around,
         test_go_around_returns_to_track_at_height_and_aborts_after_too_many,
         test_go_around_without_an_estimate_waits_for_the_exploration_altitude,
         test_final_action_hover_climbs_holds_and_completes,

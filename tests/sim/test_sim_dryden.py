@@ -183,7 +183,8 @@ def test_drag_area_comes_from_the_airframe() -> None:
     assert f_heavy[0] == pytest.approx(0.5 * 1.2 * heavy.body_drag_area_m2 * 144.0)
     # the F450's area is paper 004's 0.09 m^2: the same force as the steady model always gave
     np.testing.assert_array_equal(
-        make_wind(steady, rng, f450).force_W(0.0, p, v), SteadyWind(np.array([12.0, 0.0, 0.0])).force_W(0.0, p, v)
+        make_wind(steady, rng, f450).force_W(0.0, p, v),
+        SteadyWind(np.array([12.0, 0.0, 0.0])).force_W(0.0, p, v),
     )
     dryden = scenario_from_dict(
         {"wind": {"model": "dryden", "velocity_mps": [12.0, 0.0, 0.0], "turbulence": "light"}}

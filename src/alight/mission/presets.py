@@ -112,6 +112,7 @@ _MISSION_OPTIONAL = (
     "land_hold_timeout_s",
     "land_commit_timeout_s",
     "land_commit_speed_change_mps",
+    "land_commit_ground_margin_m",
     "final_action",
 )
 """Scenario mission keys whose None means the MissionConfig default."""
@@ -136,22 +137,25 @@ def visibility_commit_height_m(pad: Any, camera: Any) -> float | None:
     return 0.5 * pad.min_view_side_m / math.tan(usable)
 
 
+def _mission_value(s: Any, eff: EffectiveBlocks, key: str) -> Any:
+    """A mission key as it flies: the scenario's, or where it leaves it None the preset's (its data's
+    ``mission:`` section, checked by the scenario), or None: the block's default."""
+    value = getattr(s.mission, key)
+    return eff.mission.get(key) if value is None else value
+
+
 def _mission_config(
     s: Any, eff: EffectiveBlocks, hover_thrust_N: float, commit_floor_m: float | None = None
 ) -> MissionConfig:
-    m = s.mission
-    land_speed = float(eff.mission.get("land_speed_mps", 0.4))
-    td = {k: v for k, v in m.touchdown.model_dump().items() if v is not None}
-    optional = {k: getattr(m, k) for k in _MISSION_OPTIONAL if getattr(m, k) is not None}
+    td = dict(eff.mission.get("touchdown") or {})
+    td.update({k: v for k, v in s.mission.touchdown.model_dump().items() if v is not None})
+    keys = ("land_speed_mps", *_MISSION_OPTIONAL)
+    optional = {k: v for k in keys if (v := _mission_value(s, eff, k)) is not None}
     if commit_floor_m is not None and "land_commit_height_m" not in optional:
-        # the camera cannot see the pad below this: commit no lower (a scenario's own value stands)
+        # the camera cannot see the pad below this: commit no lower (a scenario's or preset's value stands)
         default = MissionConfig.__dataclass_fields__["land_commit_height_m"].default
         optional["land_commit_height_m"] = max(float(default), commit_floor_m)  # type: ignore[arg-type]
-    return MissionConfig(
-        land_speed_mps=land_speed if m.land_speed_mps is None else m.land_speed_mps,
-        touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td),
-        **optional,
-    )
+    return MissionConfig(touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td), **optional)
 
 
 def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
@@ -271,17 +275,14 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
             search_pattern=s.mission.search_pattern,
             aim_camera=s.mission.aim_camera,
-            intercept=s.mission.intercept,
-            adaptive_horizon=s.mission.adaptive_horizon,
-            no_feasible=s.mission.no_feasible,
-            max_platform_speed_mps=s.mission.max_platform_speed_mps,
+            max_platform_speed_mps=_mission_value(s, eff, "max_platform_speed_mps"),
             max_tilt_rad=airframe.max_tilt_rad,
             rotor_drag_per_s=airframe.rotor_drag[0],
-            **(
-                {}
-                if s.mission.search_speed_uncertainty_mps is None
-                else {"search_speed_uncertainty_mps": s.mission.search_speed_uncertainty_mps}
-            ),
+            **{
+                k: v
+                for k in ("intercept", "adaptive_horizon", "no_feasible", "search_speed_uncertainty_mps")
+                if (v := _mission_value(s, eff, k)) is not None
+            },
         ),
     )
     controller = _controller(airframe, eff)
@@ -317,6 +318,13 @@ def effective_config(scenario: Any) -> dict[str, Any]:
     out: dict[str, Any] = scenario.model_dump(mode="json")
     out["blocks"] = eff.as_dict()
     out["preset_mission"] = dict(eff.mission)
+    # the mission keys as they fly: the preset's defaults where the scenario leaves None
+    for key, value in eff.mission.items():
+        if key == "touchdown":
+            td = out["mission"]["touchdown"]
+            td.update({k: v for k, v in value.items() if td.get(k) is None})
+        elif key in out["mission"] and out["mission"][key] is None:
+            out["mission"][key] = value
     return out
 
 

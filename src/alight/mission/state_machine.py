@@ -14,7 +14,9 @@ Paper 000 has four states: takeoff, exploration, platform tracking, landing. We 
   long, horizontal offset, relative velocity, estimator consistency): climb back to the tracking height
   above the predicted platform while following it, then track again. Below ``land_commit_height_m`` the
   descent continues on the prediction (a downward camera cannot see the whole pad from closer than about
-  its size); while a gate is only marginal the descent holds its height (``descent_hold``).
+  its size), for at most ``land_commit_timeout_s`` and while the range finder does not see the ground
+  beside the deck (``land_commit_ground_margin_m``), when those are set; while a gate is only marginal the
+  descent holds its height (``descent_hold``).
 - ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
   budget is spent. ABORT performs the ``final_action``: ``hover`` (climb to the exploration altitude and
   hold), ``return`` (fly to the take-off point at the exploration altitude and land there) or
@@ -117,6 +119,11 @@ class MissionConfig:
     braked or drove off under the last half metre (the estimator follows a speed change within a few
     measurements, and the camera may lose the pad right after), and the prediction the descent flies on
     no longer holds."""
+    land_commit_ground_margin_m: float | None = None
+    """Go-around when, in a committed descent, the range finder (from the feet) reads more than this
+    beyond the body's height over the estimated deck (m): the surface below is lower than the deck, the
+    prediction has left the pad and the vehicle would land beside it. It needs a deck higher than the
+    margin plus the gear. None: off (paper 000's descent)."""
     lost_timeout_s: float = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
     search_timeout_s: float = 20.0
@@ -156,6 +163,7 @@ class MissionConfig:
             "land_hold_timeout_s",
             "land_commit_timeout_s",
             "land_commit_speed_change_mps",
+            "land_commit_ground_margin_m",
             "lost_timeout_s",
             "land_lost_timeout_s",
             "search_timeout_s",
@@ -163,7 +171,11 @@ class MissionConfig:
         )
         for name in positive:
             value = getattr(self, name)
-            if value is None and name in ("takeoff_altitude_m", "land_commit_timeout_s"):
+            if value is None and name in (
+                "takeoff_altitude_m",
+                "land_commit_timeout_s",
+                "land_commit_ground_margin_m",
+            ):
                 continue
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"mission.{name} must be positive, got {value}")
@@ -203,6 +215,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "descent held too long"),
     (Mode.LAND, Mode.GO_AROUND, "no touchdown after the commit height"),
     (Mode.LAND, Mode.GO_AROUND, "platform speed changed after the commit"),
+    (Mode.LAND, Mode.GO_AROUND, "ground below the committed descent"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -380,7 +393,7 @@ class Mission:
                 self._go(t, Mode.EXPLORE, "search around the prediction timed out")
 
         elif mode is Mode.LAND:
-            self._step_land(t, ego, target, age, over_budget, touchdown)
+            self._step_land(t, ego, target, age, over_budget, touchdown, range_m)
 
         elif mode is Mode.GO_AROUND:
             if self.go_arounds > cfg.max_go_arounds:
@@ -447,6 +460,7 @@ class Mission:
         age: float,
         over_budget: bool,
         touchdown: bool,
+        range_m: float | None = None,
     ) -> None:
         cfg = self.config
         if touchdown:
@@ -467,10 +481,15 @@ class Mission:
             self._committed_speed = float(np.hypot(target.v_WP[0], target.v_WP[1]))
         if self._committed_since is not None:
             change = abs(float(np.hypot(target.v_WP[0], target.v_WP[1])) - self._committed_speed)
+            margin = cfg.land_commit_ground_margin_m
             if t - self._committed_since > self.commit_timeout_s():
                 self._go_around(t, "no touchdown after the commit height")
             elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
                 self._go_around(t, "platform speed changed after the commit")
+            elif margin is not None and range_m is not None and range_m > height + margin:
+                # the range from the feet exceeds the body's height over the estimated deck: the surface
+                # below is lower than the deck (the ground beside it)
+                self._go_around(t, "ground below the committed descent")
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
