@@ -1,13 +1,21 @@
-"""numba compile time of a mission: with an empty cache (a fresh install) and with the cache it left.
+"""numba compile time: of a mission with an empty cache (a fresh install) and with the cache it left, and of
+each preset's warm-up with an empty cache.
 
-Run: ``python benchmarks/numba_compile.py [SCENARIO]`` (default ``examples/circle.yaml``, the README's
-first command; prints JSON). Each measurement is a fresh Python process flying the scenario once
-(``run_mission``, as ``alight fly`` does) with ``NUMBA_CACHE_DIR`` pointing to a new, empty directory
-(``cold``), then again with the same directory (``warm``). ``compile_s`` is the CPU time numba spent
-compiling (``alight.warmup.compile_meter``: outermost compiles only, cache loads excluded; CPU rather than
-wall time, so other work on the machine does not inflate it), ``signatures`` the signatures compiled,
-``top`` the kernels that dominate, ``mission_wall_s`` the mission's ``wall_time_s`` (it includes the
-compile here: ``alight fly`` has no warm-up; a campaign's sandboxes do).
+Run: ``python benchmarks/numba_compile.py [SCENARIO] [--presets P,...]`` (default scenario
+``examples/circle.yaml``, the README's first command; prints JSON). Each measurement is a fresh Python
+process with ``NUMBA_CACHE_DIR`` pointing to a new, empty directory:
+
+- ``cold``: the process flies the scenario once (``run_mission``, as ``alight fly --no-warmup`` does);
+  ``warm``: again with the cache the first one left.
+- ``presets``: for each preset (default all four), a process with its own empty cache flies the preset's
+  warm-up (``alight.warmup.warm_up``, what ``alight fly`` and a campaign's sandbox run before any
+  mission's clock starts): the cold compile of that preset.
+
+``compile_s`` is the CPU time numba spent compiling (``alight.warmup.compile_meter``: outermost compiles
+only, cache loads excluded; CPU rather than wall time, so other work on the machine does not inflate it),
+``signatures`` the signatures compiled, ``top`` the kernels that dominate, ``cpu_s``/``wall_s`` the
+whole child process (imports included). ``mission_wall_s`` is the mission's ``wall_time_s``: it includes
+the compile here because this benchmark flies without a warm-up, as a measurement of the compile.
 """
 
 from __future__ import annotations
@@ -17,34 +25,62 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
+from typing import Any
 
 _CHILD = """
 import json, sys, time
-from alight.warmup import compile_meter
-from alight.scenario import load_scenario
-from alight.evaluation.runner import run_mission
+from alight.warmup import compile_meter, warm_up
+what, arg = sys.argv[1], sys.argv[2]
+out = {}
 with compile_meter() as m:
-    r = run_mission(load_scenario(sys.argv[1]), record=True).result
+    if what == "scenario":
+        from alight.scenario import load_scenario
+        from alight.evaluation.runner import run_mission
+        r = run_mission(load_scenario(arg), record=True).result
+        out = {"mission_wall_s": round(r["wall_time_s"], 2), "outcome": r["outcome"],
+               "touchdown_error_m": r["touchdown_error_m"]}
+    else:
+        rep = warm_up([arg])
+        out = {"warmup_wall_s": round(rep.wall_s, 2)}
 top = sorted(m.by_kernel.items(), key=lambda kv: -kv[1])[:10]
-print(json.dumps({"compile_s": round(m.compile_s, 2), "signatures": m.n_signatures,
-                  "mission_wall_s": round(r["wall_time_s"], 2), "outcome": r["outcome"],
-                  "top": {k: round(v, 2) for k, v in top}}))
+out.update({"compile_s": round(m.compile_s, 2), "signatures": m.n_signatures,
+            "top": {k: round(v, 2) for k, v in top}})
+print(json.dumps(out))
 """
 
 
-def main() -> None:
-    scenario = (
-        sys.argv[1] if len(sys.argv) > 1 else str(Path(__file__).parents[1] / "examples" / "circle.yaml")
+def _child(what: str, arg: str, cache: str) -> dict[str, Any]:
+    env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+    t0, c0 = time.perf_counter(), os.times()
+    run = subprocess.run(
+        [sys.executable, "-c", _CHILD, what, arg], env=env, capture_output=True, text=True, check=True
     )
-    out = {"scenario": scenario}
+    c1 = os.times()
+    out: dict[str, Any] = json.loads(run.stdout.strip().splitlines()[-1])
+    out["cpu_s"] = round(c1.children_user - c0.children_user + c1.children_system - c0.children_system, 2)
+    out["wall_s"] = round(time.perf_counter() - t0, 2)
+    out["load_avg_1min"] = round(os.getloadavg()[0], 2)
+    return out
+
+
+def main() -> None:
+    args = sys.argv[1:]
+    presets = ["groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"]
+    if "--presets" in args:
+        i = args.index("--presets")
+        presets = [p for p in args[i + 1].split(",") if p]
+        del args[i : i + 2]
+    scenario = args[0] if args else str(Path(__file__).parents[1] / "examples" / "circle.yaml")
+    out: dict[str, Any] = {"scenario": scenario}
     with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         for label in ("cold", "warm"):
-            run = subprocess.run(
-                [sys.executable, "-c", _CHILD, scenario], env=env, capture_output=True, text=True, check=True
-            )
-            out[label] = json.loads(run.stdout.strip().splitlines()[-1])
+            out[label] = _child("scenario", scenario, cache)
+    out["presets"] = {}
+    for preset in presets:
+        with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
+            out["presets"][preset] = {"cold": _child("warmup", preset, cache)}
     print(json.dumps(out, indent=1))
 
 

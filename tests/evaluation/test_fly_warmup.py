@@ -1,0 +1,61 @@
+"""``alight fly`` compiles the preset's kernels before the mission's clock starts (issue 18, item 3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import alight.evaluation.mission_io as mission_io
+import alight.warmup as warmup
+from alight.cli import main
+
+ROOT = Path(__file__).parents[2]
+
+
+def _record_order(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    calls: list[str] = []
+    real_warm_up = warmup.warm_up
+    real_fly = mission_io.fly_to_dir
+
+    def warm_up(presets: Any) -> warmup.WarmupReport:
+        calls.append("warm_up")
+        return real_warm_up(presets)
+
+    def fly_to_dir(*args: Any, **kwargs: Any) -> Any:
+        calls.append("fly")
+        return real_fly(*args, **kwargs)
+
+    monkeypatch.setattr(warmup, "warm_up", warm_up)
+    monkeypatch.setattr(mission_io, "fly_to_dir", fly_to_dir)
+    return calls
+
+
+def test_fly_warms_up_before_the_mission_clock_and_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    calls = _record_order(monkeypatch)
+    assert main(["fly", str(ROOT / "examples" / "circle.yaml"), "--out", str(tmp_path)]) == 0
+    assert calls == ["warm_up", "fly"]
+    err = capsys.readouterr().err
+    assert "warm-up (groundtruth, before the mission's clock)" in err
+    assert "numba compiled" in err
+
+
+def test_fly_no_warmup_skips_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = _record_order(monkeypatch)
+    assert main(["fly", str(ROOT / "examples" / "circle.yaml"), "--out", str(tmp_path), "--no-warmup"]) == 0
+    assert calls == ["fly"]
+
+
+def test_after_the_warm_up_a_mission_compiles_nothing() -> None:
+    """What the warm-up leaves compiled is all the README's first mission needs: its clock holds no
+    compile (the same process, so this holds on a cold cache as on a warm one)."""
+    from alight.evaluation.runner import run_mission
+    from alight.scenario import load_scenario
+
+    warmup.warm_up(["groundtruth"])
+    with warmup.compile_meter() as meter:
+        run_mission(load_scenario(ROOT / "examples" / "circle.yaml"), record=True)
+    assert meter.n_signatures == 0, meter.by_kernel
