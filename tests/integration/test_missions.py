@@ -270,13 +270,15 @@ def test_three_line_scenario_has_defaults() -> None:
 def test_every_example_scenario_validates() -> None:
     from pathlib import Path
 
+    from alight.mission.presets import PRESETS
     from alight.scenario import load_scenario
 
     examples = sorted((Path(__file__).resolve().parents[2] / "examples").glob("*.yaml"))
     assert len(examples) >= 6
+    assert {"alight", "groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"} <= set(PRESETS)
     for path in examples:
         s = load_scenario(path)
-        assert s.preset in ("groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"), path
+        assert s.preset in PRESETS, path
 
 
 # A 2 m/s circle for the two presets whose papers' estimators are constant velocity: predicted along
