@@ -184,6 +184,19 @@ def _bad(kind: str, t: float, p: Any, cov: Any) -> Any:
     return _measurement(t, np.asarray(p) + [50.0, 0.0, 0.0], cov)  # outlier
 
 
+def _count_bad(counts: dict[str, int], examples: list[str], kind: str, status: str, value: Any) -> None:
+    """Tally one bad input's fate: a crash (kept as an example), a hang, or a refusal (an exception the
+    block raised on purpose, or a False return)."""
+    counts["bad"] += 1
+    if status == "crash":
+        counts["crashes"] += 1
+        examples.append(f"crash:{kind}:{type(value).__name__}:{value}")
+    elif status == "hang":
+        counts["hangs"] += 1
+    elif status == "refused" or value is False:
+        counts["refused"] += 1
+
+
 def run_platform_estimators(n_bad: int, seed: int, limit_s: float) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name in sorted(ESTIMATORS):
@@ -211,14 +224,7 @@ def run_platform_estimators(n_bad: int, seed: int, limit_s: float) -> dict[str, 
             t += 0.1
             _call(partial(est.predict, t), limit_s)
             status, value = _call(partial(est.update, _bad(kind, t, truth(t), cov)), limit_s)
-            counts["bad"] += 1
-            if status == "crash":
-                counts["crashes"] += 1
-                examples.append(f"crash:{kind}:{type(value).__name__}:{value}")
-            elif status == "hang":
-                counts["hangs"] += 1
-            elif status == "refused" or value is False:
-                counts["refused"] += 1
+            _count_bad(counts, examples, kind, status, value)
             # a huge-gap query must cost bounded work
             _call(partial(est.state, t + 1e7), limit_s)
             t += 0.1
@@ -286,14 +292,7 @@ def run_ego(n_bad: int, seed: int, limit_s: float) -> dict[str, Any]:
                 status, value = _call(many, limit_s)
             else:
                 status, value = _call(partial(ekf.update_odometry, tt, p, qq), limit_s)
-            counts["bad"] += 1
-            if status == "crash":
-                counts["crashes"] += 1
-                examples.append(f"crash:{kind}:{type(value).__name__}:{value}")
-            elif status == "hang":
-                counts["hangs"] += 1
-            elif status == "refused" or value is False:
-                counts["refused"] += 1
+            _count_bad(counts, examples, kind, status, value)
             t = max(t, ekf.t)
             # a good message after each bad one
             _call(partial(ekf.update_odometry, t, rng.normal(0, 0.01, 3), q), limit_s)

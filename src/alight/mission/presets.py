@@ -33,7 +33,7 @@ from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
 from alight.mission.touchdown_detector import TouchdownConfig
-from alight.pads import PadDesign
+from alight.pads import PadDesign, WholeMarkerPad
 from alight.pads.apriltag_pad import AprilTagPad
 from alight.pads.falanga_tag import FalangaTag
 from alight.pads.red_target import RedTarget
@@ -129,8 +129,8 @@ def visibility_commit_height_m(pad: Any, camera: Any) -> float | None:
     view kept for the vehicle's tilt: a descent must commit (go on blind, on the estimate) by then, or
     it loses the target above the commit height and goes around. None for pads whose detectors see them
     in part down to the ground (paper 000's tag has a close-range mode, the n-fold marker's centre and
-    the red disc stay detectable); the AprilTag pad's detectors need a whole marker."""
-    if not isinstance(pad, AprilTagPad) or camera is None:
+    the red disc stay detectable); a :class:`~alight.pads.WholeMarkerPad` (the AprilTag pad) declares it."""
+    if not isinstance(pad, WholeMarkerPad) or camera is None:
         return None
     half_fov = 0.5 * float(min(camera.fov_rad()))
     usable = max(half_fov - VIEW_TILT_ALLOWANCE_RAD, math.radians(5.0))

@@ -47,6 +47,18 @@ class PadDesign(Protocol):
         ...
 
 
+@runtime_checkable
+class WholeMarkerPad(Protocol):
+    """A pad whose detectors need a part of it whole in view (a marker): it cannot be detected from
+    closer than where that part fills the image. Pads seen in part down to the ground do not declare
+    it."""
+
+    @property
+    def min_view_side_m(self) -> float:
+        """Side of the smallest square around the pad centre a camera must see whole (m)."""
+        ...
+
+
 REGISTRY: dict[str, Callable[..., PadDesign]] = {
     "falanga": FalangaTag.default,
     "apriltag": AprilTagPad.default,
@@ -63,6 +75,7 @@ __all__ = [
     "PadDesign",
     "RedTarget",
     "SduPad",
+    "WholeMarkerPad",
     "texture_homography",
     "texture_side_px",
 ]
