@@ -5,11 +5,14 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pytest
 
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.mission.pipeline import BLOCKS
-from alight.mission.presets import build_preset
+from alight.estimation.sdu_kf import SduKalmanFilter
+from alight.mission.presets import PRESETS, build_preset
 from alight.scenario import scenario_from_dict
+from alight.types import PlatformMeasurement
 
 
 def test_the_falanga_detector_gets_the_range_finder_reading_before_each_image() -> None:
@@ -54,3 +57,29 @@ def test_the_detectors_time_is_charged_to_the_detector() -> None:
     assert after["mission"] > 0 and after["guidance"] > 0 and after["controller"] > 0
     assert after["ego_estimator"] > 0
     assert after["detector"] == detector_s
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_the_pipeline_gives_the_platform_estimator_its_clock(preset: str) -> None:
+    """A measurement stamped 1,000 s after the pipeline's clock is refused, and the real ones after it
+    are still fused: the step sets the estimator's clock (without one, the future stamp would be taken
+    and every real measurement after it refused as out of order)."""
+    s = scenario_from_dict({"preset": preset, "seed": 1, "platform": {"path": "straight"}})
+    pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
+    pipeline.ego_estimator.initialize(0.0, np.array([0.0, 0.0, 5.0]), np.zeros(3), np.array([0, 0, 0, 1.0]))
+    est = pipeline.platform_estimator
+    cov = np.eye(3) * 0.01
+
+    def measured(t: float, x: float) -> PlatformMeasurement:
+        return PlatformMeasurement(t=t, p_WP=np.array([x, 0.0, 0.5]), cov_p_WP=cov)
+
+    if isinstance(est, SduKalmanFilter):
+        est.set_ego(pipeline.ego())  # the SDU filter predicts with the UAV's motion (the pipeline feeds it)
+    pipeline.step(1.0)
+    assert est.update(measured(1.0, 2.0))
+    pipeline.step(1.1)
+    assert not est.update(measured(1001.0, 900.0))  # from the future
+    pipeline.step(1.2)
+    assert est.update(measured(1.2, 2.0))
+    p = est.state(1.2).p_WP
+    assert np.all(np.isfinite(p)) and abs(p[0] - 2.0) < 0.5, p

@@ -373,6 +373,9 @@ class Pipeline:
 
     def step(self, t: float) -> MissionStatus:
         """Run the mission logic and replan (at the planner's rate)."""
+        # The platform estimator's clock: a measurement stamped later than this (plus its tolerance)
+        # is from the future and is refused, instead of blocking every real one after it.
+        self.platform_estimator.predict(t)
         ego = self.ego()
         target = self.target(t)
         t0 = time.perf_counter()
