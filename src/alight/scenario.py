@@ -566,6 +566,11 @@ class MissionSpec(_Strict):
     """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
     take-off, and a search after a sighting is centred on the prediction. None: the preset's (``alight``
     sets one), else the fixed search area."""
+    takeoff_climb_speed_mps: PositiveFloat | None = None
+    """Peak vertical speed of the take-off climb (m/s), within the airframe's spare thrust (the climb's
+    peak acceleration at most half of ``(thrust_to_weight - 1) g``). A platform that drives past the
+    take-off point is seen during a fast climb and gone after a slow one. None: the preset's (5 m/s for
+    ``alight``), else half the cruise speed (2 m/s, paper 000's take-off)."""
 
 
 PRESET_ONLY_MISSION_KEYS = ("coverage_fov_deg",)

@@ -77,6 +77,11 @@ class GuidanceConfig:
     """``spiral`` (outward from the take-off point) or ``lawnmower`` (rows from the nearest corner)."""
     climb_speed_mps: float = 1.0
     """Vertical speed of a go-around (m/s)."""
+    takeoff_climb_speed_mps: float | None = None
+    """Peak vertical speed of the take-off climb (m/s); None: half ``cruise_speed_mps``."""
+    max_climb_accel_mps2: float = 0.5 * (DEFAULT_AIRFRAME.thrust_to_weight - 1.0) * _GRAVITY
+    """Largest vertical acceleration the take-off climb is planned with (m/s^2): half the airframe's
+    spare thrust, leaving the other half to the position loop."""
     land_floor_below_pad_m: float = 0.3
     """The descent's reference keeps going this far below the pad surface, so the vehicle keeps sinking
     until the range finder stops the motors rather than hovering just above the pad (m)."""
@@ -150,11 +155,12 @@ class GuidanceConfig:
 
 
 def _rest_to_rest(
-    t0: float, p0: FloatArray, v0: FloatArray, pf: FloatArray, speed: float
+    t0: float, p0: FloatArray, v0: FloatArray, pf: FloatArray, speed: float, max_accel: float = math.inf
 ) -> MinJerkTrajectory:
-    # A rest-to-rest minimum-jerk move peaks at 1.875 d / T; pick T so the peak is the cruise speed.
+    # A rest-to-rest minimum-jerk move peaks at 1.875 d / T in speed and at 10 / sqrt(3) d / T^2 in
+    # acceleration; pick the shortest T that keeps both within their limits.
     d = float(np.linalg.norm(pf - p0))
-    T = max(1.5, 1.875 * d / speed)
+    T = max(1.5, 1.875 * d / speed, math.sqrt(10.0 / math.sqrt(3.0) * d / max_accel))
     return MinJerkTrajectory.from_boundary(t0, T, p0, v0, _ZERO3, pf, _ZERO3, _ZERO3)
 
 
@@ -341,9 +347,11 @@ class Guidance:
         if mode in _AIMED_MODES:
             p0 = p0 - self._aim_W  # the aimed references are flown with the offset added
         if mode is Mode.TAKEOFF:
+            climb = cfg.takeoff_climb_speed_mps or cfg.cruise_speed_mps / 2
             self._traj = _rest_to_rest(
-                t, ego.p_WB - self._aim_W, _ZERO3, np.asarray(hover_point_W, float), cfg.cruise_speed_mps / 2
-            )
+                t, ego.p_WB - self._aim_W, _ZERO3, np.asarray(hover_point_W, float), climb,
+                cfg.max_climb_accel_mps2,
+            )  # fmt: skip
         elif mode is Mode.EXPLORE:
             self._expansions = 0
             x0, x1, y0, y1 = self._area

@@ -46,6 +46,7 @@ from alight.perception.qos_detector import QosDetector
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.planning.candidates import CandidatePlanner, PlannerConfig
 from alight.planning.min_jerk import EndConstraint
+from alight.types import GRAVITY_MPS2
 
 # The ego EKF's noise model: the data sheet of the vehicle's IMU and the VIO's reported accuracy. These
 # are the numbers the simulated sensors use by default (sim/sensors.py), as a real integrator would copy
@@ -278,9 +279,16 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
             max_platform_speed_mps=_mission_value(s, eff, "max_platform_speed_mps"),
             max_tilt_rad=airframe.max_tilt_rad,
             rotor_drag_per_s=airframe.rotor_drag[0],
+            max_climb_accel_mps2=0.5 * (airframe.thrust_to_weight - 1.0) * GRAVITY_MPS2,
             **{
                 k: v
-                for k in ("intercept", "adaptive_horizon", "no_feasible", "search_speed_uncertainty_mps")
+                for k in (
+                    "intercept",
+                    "adaptive_horizon",
+                    "no_feasible",
+                    "search_speed_uncertainty_mps",
+                    "takeoff_climb_speed_mps",
+                )
                 if (v := _mission_value(s, eff, k)) is not None
             },
         ),
