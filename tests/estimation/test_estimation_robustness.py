@@ -147,6 +147,18 @@ def test_ego_gates_a_jump_and_restarts_after_a_run() -> None:
     for _ in range(ekf.config.odometry_reset_after):
         ekf.update_odometry(ekf.t, np.array([500.0, 0, 0]), q)
     assert ekf.n_odometry_resets == 1 and abs(ekf.state().p_WB[0] - 500.0) < 1e-6
+    # the restart says how far it jumped: the odometry pose minus the estimate just before it
+    assert np.allclose(ekf.reset_delta_p_WB, [500.0, 0.0, 0.0], atol=0.1)
+
+
+def test_ego_reset_jumps_add_up() -> None:
+    ekf = _ego()
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    for jump in ([3.0, 0.0, 0.0], [3.0, -2.0, 1.0]):
+        for _ in range(ekf.config.odometry_reset_after):
+            ekf.update_odometry(ekf.t, np.array(jump), q)
+    assert ekf.n_odometry_resets == 2
+    assert np.allclose(ekf.reset_delta_p_WB, [3.0, -2.0, 1.0], atol=0.1)  # 3 m along x, then (0, -2, 1)
 
 
 def test_ego_refuses_odometry_from_the_future() -> None:

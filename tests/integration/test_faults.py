@@ -309,3 +309,24 @@ def test_falanga2017_blackout_during_the_descent_goes_around_then_lands() -> Non
     assert modes[i_ga - 1] == "land" and 13.5 < r["mode_history"][i_ga]["t"] < 17.5
     assert r["go_arounds"] >= 1 and "land" in modes[i_ga + 1 :]
     assert r["outcome"] == "landed" and r["time_to_land_s"] > 17.5
+
+
+@pytest.mark.slow
+def test_an_odometry_jump_in_the_committed_descent_does_not_throw_the_vehicle_off_the_pad() -> None:
+    # zamanakos_sdu, seed 147213886 of examples/campaigns/faults.yaml (c003): the descent starts at
+    # 10.1 s and the odometry jumps 0.5 m at 15 s, 0.1 m above the deck. Before the pipeline kept one
+    # continuous frame across the ego estimator's restart, the vehicle flew the 0.5 m against the
+    # platform and hit the deck at 27 deg of tilt and 1.3 m/s across it (crashed).
+    s = scenario_from_dict(
+        {
+            "preset": "zamanakos_sdu",
+            "seed": 147213886,
+            "duration_s": 90.0,
+            "platform": {"path": "straight", "speed_mps": 1.2},
+            "faults": {"odometry_jumps": [{"t_s": 15.0, "offset_m": [0.5, 0.0, 0.0]}]},
+        }
+    )
+    r = run_mission(s, record=False).result
+    assert r["outcome"] == "landed" and r["touchdown_error_m"] < 0.1
+    assert r["time_first_contact_s"] > 15.0  # the jump came before the touchdown
+    assert r["go_arounds"] == 0

@@ -83,3 +83,22 @@ def test_the_pipeline_gives_the_platform_estimator_its_clock(preset: str) -> Non
     assert est.update(measured(1.2, 2.0))
     p = est.state(1.2).p_WP
     assert np.all(np.isfinite(p)) and abs(p[0] - 2.0) < 0.5, p
+
+
+def test_an_odometry_jump_does_not_move_the_pipelines_frame() -> None:
+    """The ego estimator restarts at a jumped odometry pose (a VIO relocalising 0.5 m away); the pipeline
+    hands on one continuous frame, in which the platform estimate, the plan and the pose history were
+    made, so the vehicle is not flown 0.5 m against the platform."""
+    s = scenario_from_dict({"preset": "groundtruth", "seed": 1, "platform": {"path": "straight"}})
+    pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    p0 = np.array([1.0, 2.0, 5.0])
+    f_hover, w0 = np.array([0.0, 0.0, 9.81]), np.zeros(3)
+    t = 0.0
+    pipeline.on_odometry(t, p0, q, np.zeros(3))
+    for k in range(1, 201):  # 2 s at 100 Hz, the odometry 0.5 m off along x after 1 s
+        t = 0.01 * k
+        pipeline.on_imu(t, f_hover, w0)
+        pipeline.on_odometry(t, p0 + (np.array([0.5, 0.0, 0.0]) if t > 1.0 else 0.0), q, np.zeros(3))
+        assert np.linalg.norm(pipeline.ego().p_WB - p0) < 0.05, (t, pipeline.ego().p_WB)
+    assert pipeline.ego_estimator.n_odometry_resets == 1  # it did restart at the jumped pose

@@ -126,6 +126,16 @@ class EgoEstimator(Protocol):
     def state(self) -> EgoState: ...
 
 
+@runtime_checkable
+class PositionResetting(Protocol):
+    """An ego estimator that may restart at a new position (a visual odometry that relocalised) and says
+    by how much in all: ``reset_delta_p_WB`` (3,) m in W, the sum of the jumps so far. The platform
+    estimate, the references and the pose history live in the estimate's frame; the pipeline subtracts
+    the sum so that a jump of the odometry does not move them all against the vehicle."""
+
+    reset_delta_p_WB: FloatArray
+
+
 def _platform_ekf(**params: Any) -> PlatformEkf:
     return PlatformEkf(PlatformEkfConfig(**params))
 
@@ -174,6 +184,7 @@ __all__ = [
     "PlatformEkf",
     "PlatformEkfConfig",
     "PlatformEstimator",
+    "PositionResetting",
     "TelemetryFusing",
     "SduKalmanFilter",
     "SduKfConfig",

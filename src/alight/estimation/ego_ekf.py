@@ -782,6 +782,10 @@ class EgoEkf:
         """Odometry messages refused by the position gate (``EgoEkfConfig.odometry_gate``)."""
         self.n_odometry_resets = 0
         """Restarts at the odometry pose after ``odometry_reset_after`` gated messages in a row."""
+        self.reset_delta_p_WB = np.zeros(3)
+        """Sum of the position jumps of those restarts (m, W): the odometry pose minus the estimate
+        just before each. A consumer that keeps its own positions in the estimate's frame (the pipeline)
+        subtracts it to see one continuous frame (PX4 publishes the same as ``delta_xy``/``delta_z``)."""
         self._consecutive_gated = 0
 
     def initialize(
@@ -1014,8 +1018,10 @@ class EgoEkf:
             self.n_odometry_gated,
         )
         resets = self.n_odometry_resets + 1
+        delta = self.reset_delta_p_WB + (self._z[0:3] - self._x[0:3])
         t, q = self._t, self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
         self.initialize(t, self._z[0:3].copy(), self._x[3:6].copy(), q)
+        self.reset_delta_p_WB = delta
         self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated = (
             n_updates,
             n_rejected,

@@ -356,7 +356,13 @@ class Pipeline:
         if self._ego is None:
             self._flush_imu()
             t0 = time.perf_counter()
-            self._ego = self.ego_estimator.state()
+            ego = self.ego_estimator.state()
+            # PositionResetting: the estimator restarted at a jumped odometry pose; hand on one continuous
+            # frame, in which the platform estimate, the plan and the pose history stay where they were
+            d = getattr(self.ego_estimator, "reset_delta_p_WB", None)
+            if d is not None and d.any():
+                ego = EgoState.trusted(ego.t, ego.p_WB - d, ego.v_WB, ego.q_WB, ego.w_WB_B, ego.a_WB)
+            self._ego = ego
             self.stats.charge("ego_estimator", t0)
         return self._ego
 
