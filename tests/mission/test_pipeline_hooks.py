@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from alight.airframe import DEFAULT_AIRFRAME
-from alight.mission.pipeline import BLOCKS
 from alight.estimation.sdu_kf import SduKalmanFilter
+from alight.mission.pipeline import BLOCKS
 from alight.mission.presets import PRESETS, build_preset
 from alight.scenario import scenario_from_dict
 from alight.types import PlatformMeasurement
