@@ -32,6 +32,8 @@ def class_name(params: dict[str, Any]) -> str:
                 names += [
                     f"corruption.{k}" for k, v in value.items() if v != _DEFAULT_FAULTS["corruption"][k]
                 ]
+            elif key == "odometry_jumps" and value and any(j.get("announced") is False for j in value):
+                names.append("odometry_jumps.unannounced")
             elif value != _DEFAULT_FAULTS.get(key):
                 names.append(key)
         if len([n for n in names if n.startswith("corruption.")]) > 1:

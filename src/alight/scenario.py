@@ -360,6 +360,11 @@ class OdometryJumpSpec(_Strict):
     """When the odometry jumps (s)."""
     offset_m: tuple[FiniteFloat, FiniteFloat, FiniteFloat]
     """The jump of the reported position, in W (m)."""
+    announced: bool = True
+    """The VIO says so, as MAVLink ODOMETRY's ``reset_counter`` going up: the ego estimator restarts at
+    the new pose and the pipeline keeps its frame. False: an unannounced jump, which the ego estimator
+    refuses as an outlier until ``odometry_reset_after`` (10) messages in a row, then follows (its frame
+    moves under the platform estimate and the plan)."""
 
 
 class FaultSpec(_Strict):

@@ -39,7 +39,9 @@ def test_fault_campaign_has_every_class_on_every_preset_with_paired_seeds() -> N
         for lat, f in zip(latency, faults, strict=True)
         if f["latency_jitter_s"] == 0.05
     )
-    assert has(lambda f: any(math.isclose(math.hypot(*j["offset_m"]), 0.5) for j in f["odometry_jumps"]))
+    jumps = [j for f in faults for j in f["odometry_jumps"]]
+    assert all(math.isclose(math.hypot(*j["offset_m"]), 0.5) for j in jumps)
+    assert {j["announced"] for j in jumps} == {True, False}  # with and without the VIO's reset counter
     assert has(lambda f: any(math.isclose(math.hypot(*b["delta"]), 0.2) for b in f["accel_bias_steps"]))
     assert has(lambda f: f["gyro_bias_steps"]) and has(lambda f: f["blackouts"])
     assert has(lambda f: f["odometry_dropouts"]) and has(lambda f: f["range_dropout_prob"] > 0)
@@ -60,3 +62,4 @@ def test_fault_table_names_each_class() -> None:
     names = [module.class_name(cond.params) for cond in c.conditions]
     assert names[0] == "none" and len(set(names)) == len(names)
     assert "corruption" in names and "speed_profile.brake_stop" in names and "dropout_prob" in names
+    assert "odometry_jumps" in names and "odometry_jumps.unannounced" in names

@@ -147,18 +147,24 @@ def test_ego_gates_a_jump_and_restarts_after_a_run() -> None:
     for _ in range(ekf.config.odometry_reset_after):
         ekf.update_odometry(ekf.t, np.array([500.0, 0, 0]), q)
     assert ekf.n_odometry_resets == 1 and abs(ekf.state().p_WB[0] - 500.0) < 1e-6
-    # the restart says how far it jumped: the odometry pose minus the estimate just before it
-    assert np.allclose(ekf.reset_delta_p_WB, [500.0, 0.0, 0.0], atol=0.1)
+    # the estimate's own drift corrected, not a jump of the odometry's frame: nothing to hand on
+    assert not ekf.reset_delta_p_WB.any() and ekf.n_relocalizations == 0
 
 
-def test_ego_reset_jumps_add_up() -> None:
+def test_ego_relocalizes_at_an_announced_jump_and_adds_them_up() -> None:
     ekf = _ego()
     q = np.array([0.0, 0.0, 0.0, 1.0])
-    for jump in ([3.0, 0.0, 0.0], [3.0, -2.0, 1.0]):
-        for _ in range(ekf.config.odometry_reset_after):
-            ekf.update_odometry(ekf.t, np.array(jump), q)
-    assert ekf.n_odometry_resets == 2
-    assert np.allclose(ekf.reset_delta_p_WB, [3.0, -2.0, 1.0], atol=0.1)  # 3 m along x, then (0, -2, 1)
+    p0 = ekf.state().p_WB.copy()
+    for jump in ([3.0, 0.0, 0.0], [3.0, -2.0, 1.0]):  # positions the odometry jumps to
+        ekf.relocalize(ekf.t, p0 + np.array(jump), q)
+        assert np.allclose(ekf.state().p_WB, p0 + np.array(jump))  # at once, no gate
+    assert ekf.n_relocalizations == 2 and ekf.n_odometry_gated == 0
+    assert np.allclose(ekf.reset_delta_p_WB, [3.0, -2.0, 1.0])  # 3 m along x, then (0, -2, 1) more
+    with pytest.raises(EstimationError):
+        ekf.relocalize(ekf.t, np.array([np.nan, 0.0, 0.0]), q)
+    with pytest.raises(EstimationError):
+        ekf.relocalize(ekf.t, np.zeros(3), np.zeros(4))
+    assert np.allclose(ekf.reset_delta_p_WB, [3.0, -2.0, 1.0])  # a refused message changes nothing
 
 
 def test_ego_refuses_odometry_from_the_future() -> None:

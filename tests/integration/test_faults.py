@@ -35,6 +35,7 @@ class Received:
 
     imu: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
     odometry: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    odometry_resets: list[tuple[float, int | None]] = field(default_factory=list)
     ranges: list[tuple[float, float | None]] = field(default_factory=list)
     frames: list[tuple[float, float, Any]] = field(default_factory=list)
     """(arrival time, capture time, image for a camera preset or the observations for groundtruth)."""
@@ -57,9 +58,17 @@ def _spy(monkeypatch: pytest.MonkeyPatch, rec: Received) -> Callable[[float, np.
         rec.imu.append((t, np.array(f), np.array(w)))
         on_imu(self, t, f, w)
 
-    def odo(self: Pipeline, t: float, p: np.ndarray, q: np.ndarray, v: np.ndarray | None = None) -> None:
+    def odo(
+        self: Pipeline,
+        t: float,
+        p: np.ndarray,
+        q: np.ndarray,
+        v: np.ndarray | None = None,
+        reset_counter: int | None = None,
+    ) -> None:
         rec.odometry.append((t, np.array(p)))
-        on_odo(self, t, p, q, v)
+        rec.odometry_resets.append((t, reset_counter))
+        on_odo(self, t, p, q, v, reset_counter)
 
     def rng(self: Pipeline, t: float, r: float | None) -> None:
         # a valid reading, or None for what the sensor reports as invalid (+-inf: out of range or in its
@@ -186,6 +195,9 @@ def _odometry_jump(base: Received, got: Received, camera: bool) -> None:
     a = next(p for t, p in base.odometry if t >= 1.0)
     b = next(p for t, p in got.odometry if t >= 1.0)
     assert np.allclose(b - a, [0.5, 0.0, 0.0], atol=0.01)
+    # announced (the default): the reset counter goes up with the jump, as a VIO's does
+    assert all(c == 0 for t, c in base.odometry_resets)
+    assert all(c == (1 if t >= 1.0 else 0) for t, c in got.odometry_resets)
 
 
 def _odometry_dropout(base: Received, got: Received, camera: bool) -> None:
@@ -314,19 +326,26 @@ def test_falanga2017_blackout_during_the_descent_goes_around_then_lands() -> Non
 @pytest.mark.slow
 def test_an_odometry_jump_in_the_committed_descent_does_not_throw_the_vehicle_off_the_pad() -> None:
     # zamanakos_sdu, seed 147213886 of examples/campaigns/faults.yaml (c003): the descent starts at
-    # 10.1 s and the odometry jumps 0.5 m at 15 s, 0.1 m above the deck. Before the pipeline kept one
-    # continuous frame across the ego estimator's restart, the vehicle flew the 0.5 m against the
-    # platform and hit the deck at 27 deg of tilt and 1.3 m/s across it (crashed).
-    s = scenario_from_dict(
-        {
-            "preset": "zamanakos_sdu",
-            "seed": 147213886,
-            "duration_s": 90.0,
-            "platform": {"path": "straight", "speed_mps": 1.2},
-            "faults": {"odometry_jumps": [{"t_s": 15.0, "offset_m": [0.5, 0.0, 0.0]}]},
-        }
-    )
-    r = run_mission(s, record=False).result
+    # 10.1 s and the odometry jumps 0.5 m at 15 s, 0.1 m above the deck. Announced (the VIO's reset
+    # counter), the pipeline keeps one continuous frame across the ego estimator's restart and lands.
+    def fly(announced: bool) -> dict[str, Any]:
+        jump = {"t_s": 15.0, "offset_m": [0.5, 0.0, 0.0], "announced": announced}
+        s = scenario_from_dict(
+            {
+                "preset": "zamanakos_sdu",
+                "seed": 147213886,
+                "duration_s": 90.0,
+                "platform": {"path": "straight", "speed_mps": 1.2},
+                "faults": {"odometry_jumps": [jump]},
+            }
+        )
+        return run_mission(s, record=False).result
+
+    r = fly(announced=True)
     assert r["outcome"] == "landed" and r["touchdown_error_m"] < 0.1
     assert r["time_first_contact_s"] > 15.0  # the jump came before the touchdown
     assert r["go_arounds"] == 0
+    # unannounced (no reset counter), the ego EKF follows the jump 10 messages later and the frame
+    # moves under the committed descent: the case the counter exists for
+    r = fly(announced=False)
+    assert r["outcome"] == "crashed" and r["contact_surface"] == "pad"

@@ -241,7 +241,8 @@ def test_scaled_imu_and_local_position_paths_convert_to_enu_flu() -> None:
         if k % 5 == 0:  # level, nose north; 1 m north, 2 m east, 3 m up; moving 0.5 m/s north
             bridge.feed_bytes(ap.encode(m.attitude_quaternion_encode(t_ms, 1, 0, 0, 0, 0, 0, 0)))
             bridge.feed_bytes(ap.encode(m.local_position_ned_encode(t_ms, 1.0, 2.0, -3.0, 0.5, 0.0, 0.0)))
-    t, p, q, v = seen["on_odometry"][0]
+    t, p, q, v, reset_counter = seen["on_odometry"][0]
+    assert reset_counter is None  # LOCAL_POSITION_NED carries no reset counter
     np.testing.assert_allclose(p, [2.0, 1.0, 3.0])
     np.testing.assert_allclose(v, [0.0, 0.5, 0.0])
     np.testing.assert_allclose(q, [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-12)  # ENU yaw 90 deg
@@ -295,3 +296,34 @@ def test_silent_link_is_lost_on_the_wall_clock() -> None:
     n = len(cap.messages)
     fly(bridge, cap, cam, ap, 1.0)  # even if traffic resumes, it stays stopped
     assert not [m for m in cap.messages[n:] if m.get_type().startswith("SET_")]
+
+
+def test_odometry_reset_counter_keeps_the_pipelines_frame() -> None:
+    """PX4 (or a VIO) raises ODOMETRY's reset_counter when its frame jumps: the bridge hands it on and
+    the pipeline's ego position stays continuous across a 0.5 m jump north."""
+    bridge, cap, cam = make_bridge()
+    ap = FakeAutopilot()
+    m = ap.mav
+    bridge.feed_bytes(ap.encode(m.heartbeat_encode(2, 12, 1, 3 << 16, 3)))
+    z21 = [0.0] * 21
+    heights = []
+    for k in range(1, 201):
+        t_ms = 5 * k
+        bridge.feed_bytes(ap.encode(m.scaled_imu_encode(t_ms, 0, 0, -1000, 0, 0, 0, 0, 0, 0)))
+        if k % 5 == 0:  # 40 Hz; level, 3 m up; the frame jumps 0.5 m north at 0.5 s
+            jumped = t_ms > 500
+            north = 1.0 + (0.5 if jumped else 0.0)
+            bridge.feed_bytes(
+                ap.encode(
+                    m.odometry_encode(
+                        t_ms * 1000, 1, 1, north, 2.0, -3.0, [1, 0, 0, 0], 0, 0, 0, 0, 0, 0, z21, z21,
+                        int(jumped),
+                    )
+                )
+            )  # fmt: skip
+            pipe = bridge.pipeline
+            if pipe.ego_estimator.initialized:
+                heights.append(pipe.ego().p_WB.copy())
+    assert bridge.pipeline.ego_estimator.n_relocalizations == 1
+    p = np.array(heights)
+    np.testing.assert_allclose(p[:, 1], 1.0, atol=0.02)  # ENU y = north, no jump

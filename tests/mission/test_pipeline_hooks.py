@@ -59,6 +59,42 @@ def test_the_detectors_time_is_charged_to_the_detector() -> None:
     assert after["detector"] == detector_s
 
 
+def _fly_a_jump(announced: bool) -> list[float]:
+    """2 s of hover at 100 Hz in the pipeline; the odometry jumps 0.5 m along x after 1 s, its reset
+    counter going up when ``announced``. Returns the distance of the pipeline's ego position from the
+    true one at each step."""
+    s = scenario_from_dict({"preset": "groundtruth", "seed": 1, "platform": {"path": "straight"}})
+    pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    p0 = np.array([1.0, 2.0, 5.0])
+    f_hover, w0 = np.array([0.0, 0.0, 9.81]), np.zeros(3)
+    pipeline.on_odometry(0.0, p0, q, np.zeros(3), 0)
+    errors = []
+    for k in range(1, 201):
+        t = 0.01 * k
+        jumped = t > 1.0
+        pipeline.on_imu(t, f_hover, w0)
+        p = p0 + (np.array([0.5, 0.0, 0.0]) if jumped else 0.0)
+        pipeline.on_odometry(t, p, q, np.zeros(3), int(jumped and announced))
+        errors.append(float(np.linalg.norm(pipeline.ego().p_WB - p0)))
+    return errors
+
+
+def test_an_announced_odometry_jump_does_not_move_the_pipelines_frame() -> None:
+    """The odometry says its frame jumped (reset_counter up, a VIO re-localising 0.5 m away): the ego
+    estimator restarts at the new pose and the pipeline hands on one continuous frame, the one the
+    platform estimate, the plan and the pose history were made in."""
+    assert max(_fly_a_jump(announced=True)) < 0.05
+
+
+def test_an_unannounced_odometry_jump_is_gated_then_followed() -> None:
+    """Without the counter the jump is an outlier to the ego estimator's gate for 10 messages, then the
+    estimate follows it (its own drift corrected, as far as it can tell): the frame moves 0.5 m."""
+    errors = _fly_a_jump(announced=False)
+    assert max(errors[:100]) < 0.05 and max(errors[100:108]) < 0.05  # gated
+    assert abs(errors[-1] - 0.5) < 0.05  # followed
+
+
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_the_pipeline_gives_the_platform_estimator_its_clock(preset: str) -> None:
     """A measurement stamped 1,000 s after the pipeline's clock is refused, and the real ones after it
@@ -83,22 +119,3 @@ def test_the_pipeline_gives_the_platform_estimator_its_clock(preset: str) -> Non
     assert est.update(measured(1.2, 2.0))
     p = est.state(1.2).p_WP
     assert np.all(np.isfinite(p)) and abs(p[0] - 2.0) < 0.5, p
-
-
-def test_an_odometry_jump_does_not_move_the_pipelines_frame() -> None:
-    """The ego estimator restarts at a jumped odometry pose (a VIO relocalising 0.5 m away); the pipeline
-    hands on one continuous frame, in which the platform estimate, the plan and the pose history were
-    made, so the vehicle is not flown 0.5 m against the platform."""
-    s = scenario_from_dict({"preset": "groundtruth", "seed": 1, "platform": {"path": "straight"}})
-    pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
-    q = np.array([0.0, 0.0, 0.0, 1.0])
-    p0 = np.array([1.0, 2.0, 5.0])
-    f_hover, w0 = np.array([0.0, 0.0, 9.81]), np.zeros(3)
-    t = 0.0
-    pipeline.on_odometry(t, p0, q, np.zeros(3))
-    for k in range(1, 201):  # 2 s at 100 Hz, the odometry 0.5 m off along x after 1 s
-        t = 0.01 * k
-        pipeline.on_imu(t, f_hover, w0)
-        pipeline.on_odometry(t, p0 + (np.array([0.5, 0.0, 0.0]) if t > 1.0 else 0.0), q, np.zeros(3))
-        assert np.linalg.norm(pipeline.ego().p_WB - p0) < 0.05, (t, pipeline.ego().p_WB)
-    assert pipeline.ego_estimator.n_odometry_resets == 1  # it did restart at the jumped pose

@@ -128,12 +128,17 @@ class EgoEstimator(Protocol):
 
 @runtime_checkable
 class PositionResetting(Protocol):
-    """An ego estimator that may restart at a new position (a visual odometry that relocalised) and says
-    by how much in all: ``reset_delta_p_WB`` (3,) m in W, the sum of the jumps so far. The platform
-    estimate, the references and the pose history live in the estimate's frame; the pipeline subtracts
-    the sum so that a jump of the odometry does not move them all against the vehicle."""
+    """An ego estimator told when the odometry's frame jumps (a VIO re-localised; MAVLink ODOMETRY's
+    ``reset_counter`` went up): :meth:`relocalize` restarts it at the new pose, and
+    ``reset_delta_p_WB`` (3,) m in W is the sum of those jumps. The platform estimate, the references
+    and the pose history live in the estimate's frame; the pipeline subtracts the sum so that a jump of
+    the odometry does not move them all against the vehicle."""
 
     reset_delta_p_WB: FloatArray
+
+    def relocalize(
+        self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
+    ) -> None: ...
 
 
 def _platform_ekf(**params: Any) -> PlatformEkf:

@@ -783,10 +783,14 @@ class EgoEkf:
         self.n_odometry_resets = 0
         """Restarts at the odometry pose after ``odometry_reset_after`` gated messages in a row."""
         self.reset_delta_p_WB = np.zeros(3)
-        """Sum of the position jumps of those restarts (m, W): the odometry pose minus the estimate
-        just before each. A consumer that keeps its own positions in the estimate's frame (the pipeline)
-        subtracts it to see one continuous frame (PX4 publishes the same as ``delta_xy``/``delta_z``)."""
+        """Sum of the position jumps of :meth:`relocalize` (m, W): each time the odometry said its frame
+        moved, its new pose minus the estimate just before. A consumer that keeps its own positions in
+        the estimate's frame (the pipeline) subtracts it to see one continuous frame (PX4 publishes the
+        same as ``delta_xy``/``delta_z``). A restart after gated messages is the estimate's own drift
+        being corrected, not a jump of the frame, and adds nothing."""
         self._consecutive_gated = 0
+        self.n_relocalizations = 0
+        """Restarts at a pose the odometry announced as a jump of its frame (:meth:`relocalize`)."""
 
     def initialize(
         self,
@@ -1018,10 +1022,11 @@ class EgoEkf:
             self.n_odometry_gated,
         )
         resets = self.n_odometry_resets + 1
-        delta = self.reset_delta_p_WB + (self._z[0:3] - self._x[0:3])
+        delta, relocalizations = self.reset_delta_p_WB, self.n_relocalizations
         t, q = self._t, self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
         self.initialize(t, self._z[0:3].copy(), self._x[3:6].copy(), q)
-        self.reset_delta_p_WB = delta
+        # the estimate's own drift corrected: not a jump of the odometry's frame, nothing added
+        self.reset_delta_p_WB, self.n_relocalizations = delta, relocalizations
         self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated = (
             n_updates,
             n_rejected,
@@ -1029,6 +1034,41 @@ class EgoEkf:
         )
         self.n_odometry_resets = resets
         return True
+
+    def relocalize(
+        self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
+    ) -> None:
+        """The odometry announced that its frame moved (a VIO re-localised; MAVLink ODOMETRY's
+        ``reset_counter`` went up): restart at its new pose at once, instead of refusing it as an outlier,
+        and add the jump (the new position minus the estimate, propagated to ``t``) to
+        ``reset_delta_p_WB``. Raises like :meth:`update_odometry` on a message that is not a pose."""
+        p = np.asarray(p_WB, dtype=np.float64)
+        q = np.asarray(q_WB, dtype=np.float64)
+        v = self._x[3:6].copy() if v_WB is None else np.asarray(v_WB, dtype=np.float64)
+        if not (p.shape == (3,) and q.shape == (4,) and v.shape == (3,)):
+            raise MeasurementError("EgoEkf.relocalize: p_WB (3,), q_WB (4,) and v_WB (3,) expected")
+        if not (math.isfinite(t) and np.isfinite(p).all() and np.isfinite(q).all() and np.isfinite(v).all()):
+            raise EstimationError(f"EgoEkf.relocalize: non-finite pose at t={t}")
+        check_time(t, "EgoEkf.relocalize")
+        nq2 = float(q @ q)
+        if not (0.25 <= nq2 <= 4.0) or float(p @ p) > MAX_POSITION_M**2 or float(v @ v) > MAX_SPEED_MPS**2:
+            raise MeasurementError(f"EgoEkf.relocalize: not a pose at t={t}")
+        if not self._initialized:
+            self.initialize(t, p, v, q)
+            return
+        if self._has_imu and t > self._t:  # hold the last IMU sample up to the message
+            self.predict_imu(t, self._imu[0:3].copy(), self._imu[3:6].copy())
+        delta = self.reset_delta_p_WB + (p - self._x[0:3])
+        counters = (
+            self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
+            self.n_odometry_resets, self.n_relocalizations + 1,
+        )  # fmt: skip
+        self.initialize(max(t, self._t), p, v, q / math.sqrt(nq2))
+        (
+            self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
+            self.n_odometry_resets, self.n_relocalizations,
+        ) = counters  # fmt: skip
+        self.reset_delta_p_WB = delta
 
     def _move_forward(self, lag: float, m: int) -> None:
         """First-order latency compensation of the measurement in ``self._z`` by ``lag`` seconds."""

@@ -126,7 +126,7 @@ def run_mission(
         if k % every_odometry == 0:
             odo = world.odometry_message()
             if odo is not None:
-                pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB)
+                pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB, world.faults.odometry_reset_counter)
         if not pipeline.ego_estimator.initialized:
             continue
         if k % every_range == 0:

@@ -369,7 +369,10 @@ class MavlinkBridge:
         else:
             v_W = frames.ned_to_enu(v)
         self.stats.ok("ODOMETRY")
-        self._odometry(t, frames.ned_to_enu(p), q_WB, v_W)
+        # reset_counter (a MAVLink 2 extension; 0 from a sender that does not fill it): when it changes,
+        # the autopilot's or the VIO's frame jumped, and the pipeline keeps its own frame continuous
+        counter = getattr(msg, "reset_counter", None)
+        self._odometry(t, frames.ned_to_enu(p), q_WB, v_W, counter if isinstance(counter, int) else None)
 
     def _on_local_position(self, msg: Any) -> None:
         t = msg.time_boot_ms * 1e-3
@@ -390,10 +393,12 @@ class MavlinkBridge:
             return
         self._odometry(t, frames.ned_to_enu(p), self._q_WB, frames.ned_to_enu(v))
 
-    def _odometry(self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray) -> None:
+    def _odometry(
+        self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray, reset_counter: int | None = None
+    ) -> None:
         self._odo_t = t
         self._ekf_t = max(self._ekf_t, t)
-        self._feed(self.pipeline.on_odometry, t, p_WB, q_WB, v_WB)
+        self._feed(self.pipeline.on_odometry, t, p_WB, q_WB, v_WB, reset_counter)
 
     def _on_distance(self, msg: Any) -> None:
         t = msg.time_boot_ms * 1e-3

@@ -694,7 +694,7 @@ class EmulatedAutopilot:
             mav.local_position_ned_send(t_ms, *p, *v)
             mav.odometry_send(
                 t_us, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_NED, *p, q, *v, *rates,
-                nan21, nan21, 0, mavlink.MAV_ESTIMATOR_TYPE_VIO, 100,
+                nan21, nan21, w.faults.odometry_reset_counter, mavlink.MAV_ESTIMATOR_TYPE_VIO, 100,
             )  # fmt: skip
         if k % 2 == 0:  # 100 Hz
             lo, hi, cm, quality = distance_sensor_fields(w.range_m(), w.rangefinder.config)

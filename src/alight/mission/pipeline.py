@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from alight.control import TiltLimited
-from alight.estimation import EgoFed, PixelMeasured, TelemetryFusing
+from alight.estimation import EgoFed, PixelMeasured, PositionResetting, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
@@ -204,6 +204,7 @@ class Pipeline:
         self.last_reference: Reference | None = None
         self.last_measurement: PlatformMeasurement | None = None
         self._ego: EgoState | None = None
+        self._odometry_resets: int | None = None  # the odometry's last reset_counter
         self._target: PlatformEstimate | None = None
         self._imu_t = np.empty(32)
         self._imu_f = np.empty((32, 3))
@@ -235,15 +236,30 @@ class Pipeline:
             self.stats.charge("ego_estimator", t0)
 
     def on_odometry(
-        self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
+        self,
+        t: float,
+        p_WB: FloatArray,
+        q_WB: FloatArray,
+        v_WB: FloatArray | None = None,
+        reset_counter: int | None = None,
     ) -> None:
+        """An odometry message. ``reset_counter`` (MAVLink ODOMETRY's): when it changes, the odometry's
+        frame has jumped (a VIO re-localised) and an estimator that can (:class:`PositionResetting`)
+        restarts at the new pose while :meth:`ego` keeps handing on the old, continuous frame. None: the
+        source does not say (a jump is then an outlier to the ego estimator's gate)."""
         self._ego = None
         self._flush_imu()
         t0 = time.perf_counter()
-        if not self.ego_estimator.initialized:
-            self.ego_estimator.initialize(t, p_WB, _ZERO3 if v_WB is None else v_WB, q_WB)
+        est = self.ego_estimator
+        jumped = reset_counter is not None and self._odometry_resets not in (None, reset_counter)
+        if reset_counter is not None:
+            self._odometry_resets = reset_counter
+        if not est.initialized:
+            est.initialize(t, p_WB, _ZERO3 if v_WB is None else v_WB, q_WB)
+        elif jumped and isinstance(est, PositionResetting):
+            est.relocalize(t, p_WB, q_WB, v_WB)
         else:
-            self.ego_estimator.update_odometry(t, p_WB, q_WB, v_WB)
+            est.update_odometry(t, p_WB, q_WB, v_WB)
         self.stats.charge("ego_estimator", t0)
 
     def on_range(self, t: float, range_m: float | None) -> None:

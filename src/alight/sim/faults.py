@@ -142,6 +142,10 @@ class Faults:
         self._range_dropouts = [(float(a), float(b)) for a, b in spec.range_dropouts]
         self._odo_dropouts = [(float(a), float(b)) for a, b in spec.odometry_dropouts]
         self._jumps = sorted((j.t_s, np.array(j.offset_m, dtype=np.float64)) for j in spec.odometry_jumps)
+        self._announced = sorted(j.t_s for j in spec.odometry_jumps if j.announced)
+        self.odometry_reset_counter = 0
+        """The odometry's reset counter (MAVLink ODOMETRY ``reset_counter``) as of the last message:
+        the announced jumps so far."""
         # IMU bias steps on the sample index k (time k * tick_dt) of the first sample that carries them.
         steps: dict[int, FloatArray] = {}
         for offset, bias_steps in ((0, spec.accel_bias_steps), (3, spec.gyro_bias_steps)):
@@ -183,6 +187,7 @@ class Faults:
             return None
         if not self._jumps or t < self._jumps[0][0]:
             return odo
+        self.odometry_reset_counter = sum(t >= t_j for t_j in self._announced)
         offset = sum((d for t_j, d in self._jumps if t >= t_j), np.zeros(3))
         return EgoState.trusted(t, odo.p_WB + offset, odo.v_WB, odo.q_WB, odo.w_WB_B)
 
