@@ -114,3 +114,17 @@ def test_imu_in_flu_measures_gravity_up() -> None:
     assert f.shape[0] == rec.counts["imu"] > 1000
     assert np.median(f[:, 2]) == pytest.approx(9.81, abs=0.6)
     assert np.all(np.abs(np.median(f[:, :2], axis=0)) < 1.0)
+
+
+def test_the_odometry_carries_px4s_reset_counters() -> None:
+    """Each odometry sample carries xy_reset_counter + z_reset_counter as logged (constant in this log:
+    1 + 0, so the replay never re-localises its ego estimator)."""
+    if not ULOG.is_file():
+        pytest.skip(f"real test data not found at {ULOG} (set ALIGHT_TESTDATA)")
+    from alight.interfaces.replay_readers import OdometrySample, open_recording
+
+    lp = _local_position()
+    odometry = [s for s in open_recording(ULOG).samples() if isinstance(s, OdometrySample)]
+    assert len(odometry) == len(lp["timestamp"])
+    expected = np.asarray(lp["xy_reset_counter"], dtype=int) + np.asarray(lp["z_reset_counter"], dtype=int)
+    assert [s.reset_counter for s in odometry] == expected.tolist()

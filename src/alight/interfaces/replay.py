@@ -159,7 +159,7 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         nonlocal last_odo, truth_ego, truth_platform
         if isinstance(s, OdometrySample):
             last_odo = s
-            pipeline.on_odometry(s.t, s.p_WB, s.q_WB, s.v_WB)
+            pipeline.on_odometry(s.t, s.p_WB, s.q_WB, s.v_WB, s.reset_counter)
         elif isinstance(s, ImuSample):
             pipeline.on_imu(s.t, s.f_B, s.w_B)
         elif isinstance(s, RangeSample):

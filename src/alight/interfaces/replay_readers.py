@@ -99,6 +99,9 @@ class OdometrySample:
     """(4,) attitude, (x, y, z, w)"""
     v_WB: FloatArray | None
     """(3,) velocity in W (m/s), when the log has it"""
+    reset_counter: int | None = None
+    """the estimator's position reset counter, when the log has it (PX4: ``xy_reset_counter`` +
+    ``z_reset_counter``): a change means its frame jumped"""
 
 
 @dataclass(frozen=True)
@@ -412,6 +415,15 @@ def _ulog_pose(
     return t[keep], p[keep], q_at[keep], None if v is None else v[keep]
 
 
+def _ulog_reset_counters(data_p: Any) -> FloatArray | None:
+    """PX4's position reset counters summed per sample (``xy_reset_counter`` + ``z_reset_counter``), or
+    None when the topic has neither."""
+    names = [n for n in ("xy_reset_counter", "z_reset_counter") if n in data_p]
+    if not names:
+        return None
+    return np.sum([np.asarray(data_p[n], dtype=np.int64) for n in names], axis=0)
+
+
 def _nlerp(tq: FloatArray, q: FloatArray, t: FloatArray) -> FloatArray:
     """Quaternions at times ``t``, normalised linear interpolation between the samples around each
     (the nearer end outside ``tq``'s span, NaN more than 0.5 s outside it)."""
@@ -449,10 +461,19 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
     pose = _ulog_pose(data_p, _ulog_topic(ulog, m.attitude, mid), m.position, m.attitude, t0)
     if pose is not None:
         t, p, q, v = pose
+        # the counters at the kept samples' times (the pose keeps a subset of the topic's, in order)
+        counters = _ulog_reset_counters(data_p)
+        if counters is not None:
+            idx = np.searchsorted(_times(data_p, t0), t)
+            counters = counters[np.minimum(idx, counters.size - 1)]
         topics[Stream.ODOMETRY.value] = f"{m.position} + {m.attitude}"
         fast += [
             OdometrySample(
-                float(t[i]), p[i], q[i], None if v is None or not np.isfinite(v[i]).all() else v[i]
+                float(t[i]),
+                p[i],
+                q[i],
+                None if v is None or not np.isfinite(v[i]).all() else v[i],
+                None if counters is None else int(counters[i]),
             )
             for i in range(t.shape[0])
         ]
