@@ -415,13 +415,14 @@ def _ulog_pose(
     return t[keep], p[keep], q_at[keep], None if v is None else v[keep]
 
 
-def _ulog_reset_counters(data_p: Any) -> FloatArray | None:
+def _ulog_reset_counters(data_p: Mapping[str, np.ndarray]) -> np.ndarray | None:
     """PX4's position reset counters summed per sample (``xy_reset_counter`` + ``z_reset_counter``), or
     None when the topic has neither."""
     names = [n for n in ("xy_reset_counter", "z_reset_counter") if n in data_p]
     if not names:
         return None
-    return np.sum([np.asarray(data_p[n], dtype=np.int64) for n in names], axis=0)
+    total: np.ndarray = np.sum([np.asarray(data_p[n], dtype=np.int64) for n in names], axis=0)
+    return total
 
 
 def _nlerp(tq: FloatArray, q: FloatArray, t: FloatArray) -> FloatArray:
@@ -462,8 +463,8 @@ def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
     if pose is not None:
         t, p, q, v = pose
         # the counters at the kept samples' times (the pose keeps a subset of the topic's, in order)
-        counters = _ulog_reset_counters(data_p)
-        if counters is not None:
+        counters = None if data_p is None else _ulog_reset_counters(data_p)
+        if counters is not None and data_p is not None:
             idx = np.searchsorted(_times(data_p, t0), t)
             counters = counters[np.minimum(idx, counters.size - 1)]
         topics[Stream.ODOMETRY.value] = f"{m.position} + {m.attitude}"
