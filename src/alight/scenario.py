@@ -539,8 +539,8 @@ class MissionSpec(_Strict):
     changed by more than this since the commit (m/s); default 0.5."""
     land_commit_ground_margin_m: PositiveFloat | None = None
     """Go-around when, below the commit height, the range finder reads more than this beyond the height
-    over the estimated deck: the ground is below, not the deck (m). None: the preset's (0.2 m for
-    ``alight``), else off."""
+    over the estimated deck: the ground is below, not the deck (m). None: the preset's, else 0.2 m (every
+    packaged preset). A value above the range finder's span turns the check off."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
     land in place."""

@@ -326,14 +326,15 @@ def test_a_committed_descent_over_the_ground_beside_the_deck_goes_around() -> No
     height = CFG.land_commit_height_m - 0.2  # body over the estimated deck, committed
     low = ego(p=(5.0, 0, PAD_Z + height), v=(1.0, 0, -0.4))
     over_deck, beside = height - 0.1, height + PAD_Z - 0.1  # the range from feet 0.1 m below the body
-    cfg = dataclasses.replace(CFG, land_commit_ground_margin_m=0.2)
+    assert CFG.land_commit_ground_margin_m == 0.2  # on by default
+    cfg = CFG
     m = at_mode(Mode.LAND, cfg)
     assert m.step(3.0, low, target(3.0), over_deck).mode is Mode.LAND
     assert m.step(3.1, low, target(3.1), None).mode is Mode.LAND  # no reading: no evidence
     status = m.step(3.2, low, target(3.2), beside)
     assert status.mode is Mode.GO_AROUND and status.reason == "ground below the committed descent"
-    # off by default; and above the commit height the descent's gates decide, not the range
-    m = at_mode(Mode.LAND)
+    # off with None; and above the commit height the descent's gates decide, not the range
+    m = at_mode(Mode.LAND, dataclasses.replace(CFG, land_commit_ground_margin_m=None))
     assert m.step(3.0, low, target(3.0), beside).mode is Mode.LAND
     m = at_mode(Mode.LAND, cfg)
     high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5), v=(1.0, 0, -0.4))
