@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -119,3 +120,19 @@ def test_the_pipeline_gives_the_platform_estimator_its_clock(preset: str) -> Non
     assert est.update(measured(1.2, 2.0))
     p = est.state(1.2).p_WP
     assert np.all(np.isfinite(p)) and abs(p[0] - 2.0) < 0.5, p
+
+
+def test_one_spurious_long_return_does_not_reach_the_ground_check() -> None:
+    """The mission's committed-descent ground check reads the smallest of the last three valid ranges:
+    a single spurious return of 9 m over a deck 0.4 m below does not look like the ground beside it;
+    three in a row do. (The detector keeps the largest, robust to one low reading.)"""
+    s = scenario_from_dict({"preset": "groundtruth", "seed": 1, "platform": {"path": "straight"}})
+    pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
+    for k, r in enumerate((0.4, 0.4, 0.4, 9.0)):
+        pipeline.on_range(0.01 * k, r)
+    assert pipeline.range_low_m == 0.4 and pipeline.range_m == 9.0
+    for k in range(2):
+        pipeline.on_range(0.05 + 0.01 * k, 9.0)
+    assert pipeline.range_low_m == 9.0
+    pipeline.on_range(0.08, math.inf)  # invalid: no range at all
+    assert pipeline.range_low_m is None and pipeline.range_m is None

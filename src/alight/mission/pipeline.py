@@ -198,6 +198,9 @@ class Pipeline:
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
+        self.range_low_m: float | None = None
+        """The smallest of the last three valid range readings (None unless all three are valid): what
+        the mission's ground check reads, so that one spurious long return cannot trigger it."""
         self.range_raw_m: float | None = None
         """The latest reading as the sensor reported it (``-inf``: closer than its minimum range)."""
         self._ranges: list[float | None] = []
@@ -276,7 +279,9 @@ class Pipeline:
         if len(self._ranges) > 3:
             self._ranges.pop(0)
         valid = [r for r in self._ranges if r is not None]
-        self.range_m = max(valid) if len(valid) == len(self._ranges) else None
+        full = len(valid) == len(self._ranges)
+        self.range_m = max(valid) if full else None
+        self.range_low_m = min(valid) if full else None
 
     def on_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
         """The platform's own GNSS fix, taken at ``t_stamp`` and arriving now (later): position (3,) m,
@@ -402,7 +407,7 @@ class Pipeline:
         target = self.target(t)
         t0 = time.perf_counter()
         landed = self.touchdown.state is TouchdownState.LANDED
-        self.status = self.mission.step(t, ego, target, self.range_m, touchdown=landed)
+        self.status = self.mission.step(t, ego, target, self.range_low_m, touchdown=landed)
         self.stats.charge("mission", t0)
         if self.status.changed and self.status.mode is not Mode.LANDED and not self._detector_armed():
             self.touchdown.reset()  # a go-around or a new approach starts airborne

@@ -340,9 +340,11 @@ class Mission:
         touchdown: bool = False,
     ) -> MissionStatus:
         """Advance the machine to time ``t``. ``target`` is the platform estimate at ``t`` (None before
-        the first detection); ``range_m`` is the range finder's reading from the feet, None when invalid
-        (kept for logic that wants it; the touchdown is the land detector's); ``touchdown``: the onboard
-        land detector says the vehicle stands on a surface."""
+        the first detection); ``range_m`` is the range finder's reading from the feet, None when invalid,
+        read only by the committed descent's ground check (the pipeline gives the smallest of its last
+        three readings: one spurious long return must not send the vehicle around; the touchdown is the
+        land detector's); ``touchdown``: the onboard land detector says the vehicle stands on a
+        surface."""
         cfg = self.config
         before = self.mode
         if self.mode is Mode.IDLE:
