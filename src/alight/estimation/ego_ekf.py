@@ -1015,25 +1015,25 @@ class EgoEkf:
         self._consecutive_gated += 1
         if self._consecutive_gated < self.config.odometry_reset_after:
             return True
-        # the estimate drifted away from every message: restart at the odometry's pose
-        n_updates, n_rejected, n_gated = (
-            self.n_odometry_updates,
-            self.n_odometry_rejected,
-            self.n_odometry_gated,
-        )
-        resets = self.n_odometry_resets + 1
-        delta, relocalizations = self.reset_delta_p_WB, self.n_relocalizations
-        t, q = self._t, self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
-        self.initialize(t, self._z[0:3].copy(), self._x[3:6].copy(), q)
-        # the estimate's own drift corrected: not a jump of the odometry's frame, nothing added
-        self.reset_delta_p_WB, self.n_relocalizations = delta, relocalizations
-        self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated = (
-            n_updates,
-            n_rejected,
-            n_gated,
-        )
-        self.n_odometry_resets = resets
+        # the estimate drifted away from every message: restart at the odometry's pose (its own drift
+        # corrected, not a jump of the odometry's frame: nothing added to reset_delta_p_WB)
+        q = self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
+        self._restart(self._t, self._z[0:3].copy(), self._x[3:6].copy(), q)
+        self.n_odometry_resets += 1
         return True
+
+    def _restart(self, t: float, p_WB: FloatArray, v_WB: FloatArray, q_WB: FloatArray) -> None:
+        """:meth:`initialize` at a pose, keeping what the filter has counted over its life (the message
+        counters and ``reset_delta_p_WB``), which ``initialize`` would zero."""
+        kept = (
+            self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
+            self.n_odometry_resets, self.n_relocalizations, self.reset_delta_p_WB,
+        )  # fmt: skip
+        self.initialize(t, p_WB, v_WB, q_WB)
+        (
+            self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
+            self.n_odometry_resets, self.n_relocalizations, self.reset_delta_p_WB,
+        ) = kept  # fmt: skip
 
     def relocalize(
         self, t: float, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None = None
@@ -1059,15 +1059,8 @@ class EgoEkf:
         if self._has_imu and t > self._t:  # hold the last IMU sample up to the message
             self.predict_imu(t, self._imu[0:3].copy(), self._imu[3:6].copy())
         delta = self.reset_delta_p_WB + (p - self._x[0:3])
-        counters = (
-            self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
-            self.n_odometry_resets, self.n_relocalizations + 1,
-        )  # fmt: skip
-        self.initialize(max(t, self._t), p, v, q / math.sqrt(nq2))
-        (
-            self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
-            self.n_odometry_resets, self.n_relocalizations,
-        ) = counters  # fmt: skip
+        self._restart(max(t, self._t), p, v, q / math.sqrt(nq2))
+        self.n_relocalizations += 1
         self.reset_delta_p_WB = delta
 
     def _move_forward(self, lag: float, m: int) -> None:

@@ -347,7 +347,9 @@ class Guidance:
         if mode in _AIMED_MODES:
             p0 = p0 - self._aim_W  # the aimed references are flown with the offset added
         if mode is Mode.TAKEOFF:
-            climb = cfg.takeoff_climb_speed_mps or cfg.cruise_speed_mps / 2
+            climb = cfg.takeoff_climb_speed_mps
+            if climb is None:
+                climb = cfg.cruise_speed_mps / 2
             self._traj = _rest_to_rest(
                 t, ego.p_WB - self._aim_W, _ZERO3, np.asarray(hover_point_W, float), climb,
                 cfg.max_climb_accel_mps2,
