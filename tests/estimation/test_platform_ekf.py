@@ -579,3 +579,28 @@ def test_manoeuvre_config_is_checked() -> None:
         PlatformEkfConfig(maneuver_probability=1.0)
     with pytest.raises(ValueError, match="maneuver_accel_noise"):
         PlatformEkfConfig(maneuver_accel_noise=-1.0)
+
+
+def test_a_short_window_initialises_once_it_pins_the_velocity_down() -> None:
+    """Hand-worked: five fixes 0.05 s apart with isotropic std 0.05 m. A straight-line fit's velocity
+    variance is sigma^2 / sum (t_k - mean t)^2: 0.0025 / 0.005 = 0.5 (std 0.71 m/s) after three fixes,
+    0.0025 / 0.0125 = 0.2 (std 0.45) after four, 0.0025 / 0.025 = 0.1 (std 0.32) after five. With a limit
+    of 0.4 m/s the filter starts on the fifth fix, 0.2 s in, well before ``init_min_span``; without one
+    it waits for the span."""
+    v = np.array([4.0, -3.0, 0.0])  # 5 m/s
+    p0 = np.array([1.0, 2.0, 0.5])
+    quick = PlatformEkf(PlatformEkfConfig(init_min_span=0.3, init_max_speed_std_mps=0.4))
+    slow = PlatformEkf(PlatformEkfConfig(init_min_span=0.3))
+    for k in range(5):
+        t = 0.05 * k
+        for ekf in (quick, slow):
+            ekf.update(meas(t, p0 + v * t, std=0.05))
+        assert quick.initialized == (k == 4), k
+        assert not slow.initialized
+    assert quick.x[I_V] == pytest.approx(5.0, abs=1e-9)
+    assert quick.x[I_THETA] == pytest.approx(math.atan2(-3.0, 4.0), abs=1e-9)
+    # the filter's speed variance is the fit's, 0.1 (m/s)^2, plus what the process noise adds in 0.2 s
+    cfg = quick.config
+    assert 0.1 <= quick.covariance[I_V, I_V] <= 0.1 + cfg.accel_noise**2 * 0.2 + 1e-9
+    with pytest.raises(ValueError, match="init_max_speed_std_mps"):
+        PlatformEkfConfig(init_max_speed_std_mps=0.0)

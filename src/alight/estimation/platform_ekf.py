@@ -506,7 +506,13 @@ class PlatformEkfConfig:
     init_min_measurements: int = 3
     """Measurements needed for the initial line fit."""
     init_min_span: float = 0.3
-    """Time span (s) the initial measurements must cover."""
+    """Time span (s) the initial measurements must cover (but see ``init_max_speed_std_mps``)."""
+    init_max_speed_std_mps: float | None = None
+    """Initialise before ``init_min_span`` as soon as the line fit determines the velocity this well: the
+    standard deviation (m/s) along the fit's worst velocity direction. None: wait for the span. A fast
+    platform seen from a climbing vehicle can cross the view in 0.2 s; five fixes at 20 Hz then give
+    its velocity to ~0.4 m/s, and waiting for 0.3 s left the filter stationary at the last fix while
+    the platform drove out of view (figure-8 at 5 m/s: the mission tracked a point the pad had left)."""
     init_max_span: float = 1.0
     """Older buffered measurements are dropped before the fit (s), so the constant-velocity fit holds."""
     init_speed_prior_std: float = 3.0
@@ -563,6 +569,12 @@ class PlatformEkfConfig:
             raise ValueError(f"reinit_after_rejections must be >= 1, got {self.reinit_after_rejections}")
         if self.init_min_measurements < 2:
             raise ValueError(f"init_min_measurements must be >= 2, got {self.init_min_measurements}")
+        if self.init_max_speed_std_mps is not None and not (
+            math.isfinite(self.init_max_speed_std_mps) and self.init_max_speed_std_mps > 0.0
+        ):
+            raise ValueError(
+                f"init_max_speed_std_mps must be finite and > 0 or None, got {self.init_max_speed_std_mps}"
+            )
         if self.init_max_span < self.init_min_span:
             raise ValueError("init_max_span must be >= init_min_span")
         if self.maneuver_window < 1:
@@ -950,7 +962,10 @@ class PlatformEkf:
         t_ref = buf[-1].t
         while t_ref - buf[0].t > c.init_max_span:
             buf.pop(0)
-        if len(buf) < c.init_min_measurements or t_ref - buf[0].t < c.init_min_span:
+        if len(buf) < c.init_min_measurements:
+            return
+        spanned = t_ref - buf[0].t >= c.init_min_span
+        if not spanned and c.init_max_speed_std_mps is None:
             return
         ts = np.array([b.t for b in buf])
         ps = np.array([b.p for b in buf])
@@ -963,6 +978,12 @@ class PlatformEkf:
         if c.gating and d2.max() > self._gate3:
             buf.pop(int(np.argmax(d2)))
             return
+        if not spanned:
+            # the short window is enough only when it pins the velocity down (largest eigenvalue of the
+            # fit's velocity covariance, so no direction is left unknown)
+            assert c.init_max_speed_std_mps is not None
+            if float(np.linalg.eigvalsh(C[3:5, 3:5])[-1]) > c.init_max_speed_std_mps**2:
+                return
         x5, P5 = unicycle_from_fit(beta, C)
         n = self._n
         x = np.zeros(n)
