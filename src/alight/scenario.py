@@ -571,6 +571,12 @@ class MissionSpec(_Strict):
     """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
     take-off, and a search after a sighting is centred on the prediction. None: the preset's (``alight``
     sets one), else the fixed search area."""
+    scan_yaw_rate_rad_s: float | None = Field(default=None, ge=-3.0, le=3.0)
+    """Turn the heading at this rate (rad/s) during take-off, exploration and search, so that the
+    downward camera's wide axis sweeps round (a platform passing beside the take-off point along the
+    view's narrow side is otherwise never seen); the heading reached is held in the other modes. None:
+    the preset's (``alight`` turns), else 0, the papers' fixed heading. Acts on every preset; with the
+    omnidirectional camera of ``kim_kaist`` it changes nothing the camera sees."""
     takeoff_climb_speed_mps: PositiveFloat | None = None
     """Peak vertical speed of the take-off climb (m/s), within the airframe's spare thrust (the climb's
     peak acceleration at most half of ``(thrust_to_weight - 1) g``). A platform that drives past the

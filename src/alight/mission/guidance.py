@@ -52,7 +52,7 @@ from alight.planning.exploration import (
     spiral_waypoints,
 )
 from alight.planning.min_jerk import MinJerkTrajectory
-from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference
+from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference, wrap_angle
 
 if TYPE_CHECKING:
     from alight.estimation import PlatformEstimator
@@ -61,6 +61,7 @@ _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
 _GRAVITY = 9.81
 _AIMED_MODES = (Mode.TAKEOFF, Mode.EXPLORE)
+_SCAN_MODES = (Mode.TAKEOFF, Mode.EXPLORE, Mode.SEARCH)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,7 +87,13 @@ class GuidanceConfig:
     """The descent's reference keeps going this far below the pad surface, so the vehicle keeps sinking
     until the range finder stops the motors rather than hovering just above the pad (m)."""
     yaw: float = 0.0
-    """Heading held throughout (rad)."""
+    """Heading at take-off (rad); held throughout unless ``scan_yaw_rate_rad_s`` turns it."""
+    scan_yaw_rate_rad_s: float = 0.0
+    """Turn the heading at this rate (rad/s) while nothing is in view (take-off, exploration, search), so
+    that the camera's wide axis sweeps round; the heading reached is held in every other mode. A
+    downward camera's view is a rectangle (~90 x 64 deg: 12 x 7.5 m half-widths at 12 m), and a platform
+    passing the take-off point 8 m away along the narrow side is never in view with a fixed heading. 0:
+    the fixed heading of the papers."""
     search_expansions: int = 2
     """After a full pass over the search area without a sighting, search a ring around it this many times
     (a moving platform that was not found has most likely driven out of the area)."""
@@ -136,6 +143,8 @@ class GuidanceConfig:
     None: the fixed ``search_area``."""
 
     def __post_init__(self) -> None:
+        if not math.isfinite(self.scan_yaw_rate_rad_s):
+            raise ValueError(f"scan_yaw_rate_rad_s must be finite, got {self.scan_yaw_rate_rad_s}")
         if self.no_feasible not in ("keep", "extend"):
             raise ValueError(f"no_feasible must be 'keep' or 'extend', got {self.no_feasible!r}")
         if not 0.0 < self.speed_margin <= 1.0:
@@ -229,6 +238,8 @@ class Guidance:
         self._t_land = 0.0
         self._theta = 0.0
         self._t_search = 0.0
+        self._yaw = self.config.yaw
+        self._t_yaw: float | None = None
         self._abort_phase = ""
         self._abort_xy = np.zeros(2)
         self._abort_ground_z = 0.0
@@ -566,13 +577,14 @@ class Guidance:
     def reference(self, t: float, mode: Mode, target: PlatformEstimate | None) -> Reference:
         """The reference at time ``t`` (called at the controller's rate)."""
         cfg, mcfg = self.config, self.mission_config
+        yaw, yaw_rate = self._heading(t, mode)
         ref: Reference
         if mode is Mode.SEARCH and target is not None:
-            ref = self._search_reference(t, target)
+            ref = self._search_reference(t, target, yaw, yaw_rate)
         elif mode is Mode.ABORT and self._abort_phase == "descend":
             z, vz = self._descend(t, self._abort_ground_z, mcfg.land_speed_mps, fast=True)
             p = np.array([self._abort_xy[0], self._abort_xy[1], z])
-            ref = Reference.trusted(t, p, np.array([0.0, 0.0, vz]), _ZERO3, _ZERO3, cfg.yaw, 0.0)
+            ref = Reference.trusted(t, p, np.array([0.0, 0.0, vz]), _ZERO3, _ZERO3, yaw, yaw_rate)
         elif mode in (Mode.LAND, Mode.GO_AROUND) and target is not None:
             dt = t - self._mode_t0
             if mode is Mode.LAND:
@@ -588,19 +600,19 @@ class Guidance:
             pvaj[2, 0:2] = target.a_WP[0:2]
             pvaj[0, 2], pvaj[1, 2], pvaj[2, 2] = z, vz, 0.0
             pvaj[3] = _platform_jerk(target)
-            ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
+            ref = Reference.from_packed(t, pvaj, yaw, yaw_rate)
         elif self._route is not None and mode is Mode.EXPLORE:
             pvaj = self._route.reference_packed(t)  # a new array
             pvaj[0] += self._aim_W
-            ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
+            ref = Reference.from_packed(t, pvaj, yaw, yaw_rate)
         elif self._traj is not None:
             pvaj = self._traj.sample_packed(t)  # a new array
             if mode is Mode.TAKEOFF:
                 pvaj[0] += self._aim_W
-            ref = Reference.from_packed(t, pvaj, cfg.yaw, 0.0)
+            ref = Reference.from_packed(t, pvaj, yaw, yaw_rate)
         elif self._last_ref is not None:
             r = self._last_ref
-            ref = Reference.trusted(t, r.p, _ZERO3, _ZERO3, _ZERO3, cfg.yaw, 0.0)
+            ref = Reference.trusted(t, r.p, _ZERO3, _ZERO3, _ZERO3, yaw, yaw_rate)
         else:
             raise RuntimeError("guidance.reference called before update")
         self._last_ref = ref
@@ -623,7 +635,16 @@ class Guidance:
         self._z_land = max(self._z_land - speed * dt, z_floor)
         return self._z_land, (-speed if self._z_land > z_floor else 0.0)
 
-    def _search_reference(self, t: float, target: PlatformEstimate) -> Reference:
+    def _heading(self, t: float, mode: Mode) -> tuple[float, float]:
+        """Heading (rad) and heading rate (rad/s) of the reference at ``t``: turning at
+        ``scan_yaw_rate_rad_s`` in the modes where nothing is in view, else held where it is."""
+        rate = self.config.scan_yaw_rate_rad_s if mode in _SCAN_MODES else 0.0
+        if self._t_yaw is not None and rate != 0.0:
+            self._yaw = wrap_angle(self._yaw + rate * max(t - self._t_yaw, 0.0))
+        self._t_yaw = t
+        return self._yaw, rate
+
+    def _search_reference(self, t: float, target: PlatformEstimate, yaw: float, yaw_rate: float) -> Reference:
         """The spiral around the predicted platform (module docstring): its centre moves with the
         prediction, its radius grows at one pitch per turn up to the uncertainty radius, and its angle
         advances so that the vehicle moves at the cruise speed relative to the centre."""
@@ -646,4 +667,4 @@ class Guidance:
         vz = cfg.climb_speed_mps if z < z_goal else 0.0
         p = np.array([target.p_WP[0] + rho * c, target.p_WP[1] + rho * s, z])
         v = np.array([target.v_WP[0] - rho * w * s, target.v_WP[1] + rho * w * c, vz])
-        return Reference.trusted(t, p, v, _ZERO3, _ZERO3, cfg.yaw, 0.0)
+        return Reference.trusted(t, p, v, _ZERO3, _ZERO3, yaw, yaw_rate)

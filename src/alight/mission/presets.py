@@ -288,6 +288,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
                     "no_feasible",
                     "search_speed_uncertainty_mps",
                     "takeoff_climb_speed_mps",
+                    "scan_yaw_rate_rad_s",
                 )
                 if (v := _mission_value(s, eff, k)) is not None
             },
