@@ -571,6 +571,11 @@ class MissionSpec(_Strict):
     """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
     take-off, and a search after a sighting is centred on the prediction. None: the preset's (``alight``
     sets one), else the fixed search area."""
+    track_view_sigmas: NonNegFloat | None = None
+    """Track no lower than where the camera's narrower half-view spans this many standard deviations of
+    the platform estimate's position (a GNSS-only estimate is ~1 m off; at the usual tracking height the
+    pad is beside the view and the bias is never learned). None: the preset's (``alight`` sets one), else
+    off."""
     scan_yaw_rate_rad_s: float | None = Field(default=None, ge=-3.0, le=3.0)
     """Turn the heading at this rate (rad/s) during take-off, exploration and search, so that the
     downward camera's wide axis sweeps round (a platform passing beside the take-off point along the

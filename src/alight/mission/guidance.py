@@ -137,12 +137,25 @@ class GuidanceConfig:
     leaving the rest to the position loop."""
     max_speed_mps: float = 15.0
     """Cap on the intercept speed (m/s), whatever the airframe could do."""
+    track_view_sigmas: float | None = None
+    """Track no lower than the height at which the camera's narrower half-view spans this many standard
+    deviations of the platform estimate's horizontal position: an estimate from the platform's GNSS
+    alone is off by the receiver's bias (about 1 m per axis), and tracking it at the usual 2 m puts the
+    pad beside a 1.2 m half-view, where the camera never sees it and the bias is never learned. Once the
+    camera has the pad, the standard deviation is centimetres and this binds no more. None: off (the
+    papers' tracking height rule alone)."""
     max_platform_speed_mps: float | None = None
     """The fastest the platform may drive (m/s): the initial search area grows by this much per second
     since take-off on every side, and a search after the platform was seen is centred on its prediction.
     None: the fixed ``search_area``."""
 
     def __post_init__(self) -> None:
+        if self.track_view_sigmas is not None and not (
+            math.isfinite(self.track_view_sigmas) and self.track_view_sigmas >= 0.0
+        ):
+            raise ValueError(
+                f"track_view_sigmas must be finite and >= 0 or None, got {self.track_view_sigmas}"
+            )
         if not math.isfinite(self.scan_yaw_rate_rad_s):
             raise ValueError(f"scan_yaw_rate_rad_s must be finite, got {self.scan_yaw_rate_rad_s}")
         if self.no_feasible not in ("keep", "extend"):
@@ -457,14 +470,23 @@ class Guidance:
         mcfg = self.mission_config
         above_pad = float(ego.p_WB[2] - target.p_WP[2])
         top = max(mcfg.explore_altitude_m - float(target.p_WP[2]), mcfg.track_height_m)
+        floor = min(self._view_height(target), top)
         if not initialized:
-            return min(max(above_pad, mcfg.track_height_m), top)
+            return max(min(max(above_pad, mcfg.track_height_m), top), floor)
         distance = float(np.hypot(*(ego.p_WB[:2] - target.p_WP[:2])))
         height = mcfg.track_height_m + 0.5 * max(distance - 2.0, 0.0)
         age = t - target.t_last_measurement
         grace = 0.5  # s: a few missed frames are normal
         frac = min(max((age - grace) / max(mcfg.lost_timeout_s - grace, 1e-3), 0.0), 1.0)
-        return min(height + frac * top, top)
+        return max(min(height + frac * top, top), floor)
+
+    def _view_height(self, target: PlatformEstimate) -> float:
+        """The height above the pad at which the narrower half-view spans ``track_view_sigmas`` standard
+        deviations of the estimate's horizontal position (m); 0 when the rule is off."""
+        k = self.config.track_view_sigmas
+        if k is None:
+            return 0.0
+        return k * position_std_m(target) / math.tan(0.5 * self.config.camera_fov_rad)
 
     def _replan_tracking(
         self, t: float, ego: EgoState, estimator: PlatformEstimator, target: PlatformEstimate

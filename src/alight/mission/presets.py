@@ -289,6 +289,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
                     "search_speed_uncertainty_mps",
                     "takeoff_climb_speed_mps",
                     "scan_yaw_rate_rad_s",
+                    "track_view_sigmas",
                 )
                 if (v := _mission_value(s, eff, k)) is not None
             },
