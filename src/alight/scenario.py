@@ -576,7 +576,7 @@ class MissionSpec(_Strict):
     the platform estimate's position (a GNSS-only estimate is ~1 m off; at the usual tracking height the
     pad is beside the view and the bias is never learned). None: the preset's (``alight`` sets one), else
     off."""
-    scan_yaw_rate_rad_s: float | None = Field(default=None, ge=-3.0, le=3.0)
+    scan_yaw_rate_rad_s: float | None = Field(default=None, ge=-3.0, le=3.0, allow_inf_nan=False)
     """Turn the heading at this rate (rad/s) during take-off, exploration and search, so that the
     downward camera's wide axis sweeps round (a platform passing beside the take-off point along the
     view's narrow side is otherwise never seen); the heading reached is held in the other modes. None:

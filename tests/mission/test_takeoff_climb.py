@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from preset_flight import pipeline_taking_off
 
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.airframes import load_airframe
@@ -44,11 +45,7 @@ def test_a_rest_to_rest_climb_peaks_at_its_acceleration_when_that_binds() -> Non
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_the_climb_speed_key_acts_on_every_preset(preset: str) -> None:
     def climb_time(extra: dict) -> float:
-        s = scenario_from_dict({"preset": preset, "seed": 1, "mission": extra})
-        pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
-        pipeline.ego_estimator.initialize(0.0, np.zeros(3), np.zeros(3), np.array([0, 0, 0, 1.0]))
-        pipeline.step(0.0)  # enters the take-off
-        traj = pipeline.guidance._traj
+        traj = pipeline_taking_off(preset, extra).guidance._traj
         assert traj is not None
         return float(traj.T)
 

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from preset_flight import pipeline_taking_off
 
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.mission.guidance import GuidanceConfig
@@ -44,12 +45,10 @@ def test_no_rate_keeps_the_papers_fixed_heading() -> None:
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_the_scan_key_acts_on_every_preset(preset: str) -> None:
     def heading_after_climb(extra: dict) -> float:
-        s = scenario_from_dict({"preset": preset, "seed": 1, "mission": extra})
-        pipeline = build_preset(s, DEFAULT_AIRFRAME, np.random.default_rng(0)).pipeline
-        pipeline.ego_estimator.initialize(0.0, np.zeros(3), np.zeros(3), np.array([0, 0, 0, 1.0]))
-        for t in (0.0, 1.0):  # enters the take-off, then climbs for 1 s
-            pipeline.step(t)
-            pipeline.command(t)
+        pipeline = pipeline_taking_off(preset, extra)
+        pipeline.command(0.0)
+        pipeline.step(1.0)  # 1 s into the climb
+        pipeline.command(1.0)
         ref = pipeline.last_reference
         assert ref is not None
         return float(ref.yaw)
