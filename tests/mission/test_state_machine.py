@@ -263,6 +263,88 @@ def test_a_marginal_gate_holds_the_descent_then_goes_around() -> None:
     assert status.mode is Mode.GO_AROUND and status.reason == "descent held too long"
 
 
+def tilted(p, v, tilt_rad: float) -> EgoState:  # type: ignore[no-untyped-def]
+    """At ``p`` moving at ``v``, the body rolled by ``tilt_rad`` about x."""
+    q = np.array([np.sin(0.5 * tilt_rad), 0.0, 0.0, np.cos(0.5 * tilt_rad)])
+    return EgoState(t=0.0, p_WB=np.array(p), v_WB=np.array(v), q_WB=q, w_WB_B=np.zeros(3))
+
+
+def test_the_lull_gate_holds_the_commit_until_the_tilt_drops_then_goes_around() -> None:
+    cfg = dataclasses.replace(CFG, land_commit_max_tilt_rad=0.3, land_tilt_time_constant_s=0.3)
+    m = at_mode(Mode.LAND, cfg)
+    low = (5.0, 0, PAD_Z + cfg.land_commit_height_m - 0.05)
+    high = (5.0, 0, PAD_Z + cfg.land_commit_height_m + 0.5)
+    # above the commit height a lean does not hold the descent
+    assert m.step(3.0, tilted(high, (1.0, 0, 0), 0.4), target(3.0), None).mode is Mode.LAND
+    assert not m.descent_hold and m.tilt_lp_rad == pytest.approx(0.4)  # the first sample starts the filter
+    # at the commit height, leaning 0.4 rad > 0.3: held, not committed, one event
+    assert m.step(3.1, tilted(low, (1.0, 0, 0), 0.4), target(3.1), None).mode is Mode.LAND
+    assert m.descent_hold and not m.committed
+    assert m.events[-1].kind == "descent_hold" and "waiting for a lull" in m.events[-1].reason
+    # the tilt drops to 0.2 rad: the 0.3 s low-pass (steps of 0.1 s, gain 0.1 / 0.4 = 0.25) goes
+    # 0.4 -> 0.35 -> 0.3125 -> 0.284: released at the third step, by hand, committed at the next (as after
+    # any hold: the descent resumes, then commits)
+    for k, expect in ((1, 0.35), (2, 0.3125)):
+        m.step(3.1 + 0.1 * k, tilted(low, (1.0, 0, 0), 0.2), target(3.1 + 0.1 * k), None)
+        assert m.tilt_lp_rad == pytest.approx(expect) and not m.committed and m.descent_hold
+    m.step(3.4, tilted(low, (1.0, 0, 0), 0.2), target(3.4), None)
+    assert m.tilt_lp_rad == pytest.approx(0.284375) and not m.descent_hold
+    m.step(3.5, tilted(low, (1.0, 0, 0), 0.2), target(3.5), None)
+    assert m.committed
+    # no lull for land_tilt_wait_s: go-around (not the 3 s hold timeout)
+    m = at_mode(Mode.LAND, cfg)
+    m.step(3.0, tilted(low, (1.0, 0, 0), 0.4), target(3.0), None)
+    assert m.descent_hold
+    t_end = 3.0 + cfg.land_tilt_wait_s
+    assert (
+        m.step(3.0 + cfg.land_hold_timeout_s + 1.0, tilted(low, (1.0, 0, 0), 0.4), target(7.0), None).mode
+        is Mode.LAND
+    )
+    assert m.step(t_end - 0.1, tilted(low, (1.0, 0, 0), 0.4), target(t_end - 0.1), None).mode is Mode.LAND
+    status = m.step(t_end + 0.1, tilted(low, (1.0, 0, 0), 0.4), target(t_end + 0.1), None)
+    assert status.mode is Mode.GO_AROUND and status.reason == "no lull in the tilt"
+    # off by default: the same lean commits at once
+    m = at_mode(Mode.LAND)
+    m.step(3.0, tilted(low, (1.0, 0, 0), 0.4), target(3.0), None)
+    assert m.committed
+    with pytest.raises(ValueError, match="land_commit_max_tilt_rad"):
+        MissionConfig(land_commit_max_tilt_rad=2.0)
+
+
+def test_the_lull_gate_waits_out_an_unsteady_lean_only_and_pauses_a_committed_descent() -> None:
+    cfg = dataclasses.replace(CFG, land_commit_max_tilt_rad=0.3, land_tilt_min_spread_rad=0.05)
+    low = (5.0, 0, PAD_Z + cfg.land_commit_height_m - 0.05)
+    # a steady lean of 0.4 rad (a fast deck in calm air): the spread is 0, the commit is not held
+    m = at_mode(Mode.LAND, cfg)
+    for k in range(5):
+        m.step(3.0 + 0.1 * k, tilted(low, (1.0, 0, 0), 0.4), target(3.0 + 0.1 * k), None)
+    assert m.tilt_sd_rad == 0.0 and m.committed
+    # the same level swinging by +-0.2 rad every 0.1 s (gusts): held
+    m = at_mode(Mode.LAND, cfg)
+    high = (5.0, 0, PAD_Z + cfg.land_commit_height_m + 0.5)
+    for k in range(30):
+        m.step(
+            3.0 + 0.1 * k,
+            tilted(high, (1.0, 0, 0), 0.4 + (0.2 if k % 2 else -0.2)),
+            target(3.0 + 0.1 * k),
+            None,
+        )
+    assert m.tilt_sd_rad > 0.1 and not m.descent_hold  # above the commit height nothing waits
+    m.step(6.0, tilted(low, (1.0, 0, 0), 0.6), target(6.0), None)
+    assert m.descent_hold and not m.committed
+    # committed in a lull, a gust pauses the descent while the body is above half the commit height,
+    # and no lower
+    m = at_mode(Mode.LAND, cfg)
+    m.step(3.0, tilted(low, (1.0, 0, 0), 0.1), target(3.0), None)
+    assert m.committed
+    m._tilt_var = 0.01  # an unsteady lean (spread 0.1 rad) ...
+    m.step(3.1, tilted(low, (1.0, 0, 0), 1.0), target(3.1), None)  # ... and a gust: 0.1 -> 0.325 rad
+    assert m.committed and m.descent_hold and m.mode is Mode.LAND
+    lower = (5.0, 0, PAD_Z + 0.4 * cfg.land_commit_height_m)
+    m.step(3.2, tilted(lower, (1.0, 0, 0), 1.0), target(3.2), None)
+    assert m.committed and not m.descent_hold
+
+
 def test_sinking_through_the_commit_height_during_a_hold_does_not_commit() -> None:
     """A vehicle that lags its held reference and sinks below the commit height while a gate is marginal
     (the platform braked) is not committed: the gates still apply, and a bad one goes around."""
@@ -433,6 +515,8 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_land_to_landed_on_the_onboard_touchdown,
         test_land_without_estimate_goes_around,
         test_a_marginal_gate_holds_the_descent_then_goes_around,
+        test_the_lull_gate_holds_the_commit_until_the_tilt_drops_then_goes_around,
+        test_the_lull_gate_waits_out_an_unsteady_lean_only_and_pauses_a_committed_descent,
         test_sinking_through_the_commit_height_during_a_hold_does_not_commit,
         test_a_committed_descent_without_touchdown_goes_around,
         test_a_platform_speed_change_under_a_committed_descent_goes_around,

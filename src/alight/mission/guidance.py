@@ -87,13 +87,31 @@ class GuidanceConfig:
     """The descent's reference keeps going this far below the pad surface, so the vehicle keeps sinking
     until the range finder stops the motors rather than hovering just above the pad (m)."""
     yaw: float = 0.0
-    """Heading at take-off (rad); held throughout unless ``scan_yaw_rate_rad_s`` turns it."""
+    """Heading at take-off (rad); held throughout unless ``scan_yaw_rate_rad_s`` or the weathervane
+    (``weathervane_min_tilt_rad``) turns it."""
     scan_yaw_rate_rad_s: float = 0.0
     """Turn the heading at this rate (rad/s) while nothing is in view (take-off, exploration, search), so
     that the camera's wide axis sweeps round; the heading reached is held in every other mode. A
     downward camera's view is a rectangle (~90 x 64 deg: 12 x 7.5 m half-widths at 12 m), and a platform
     passing the take-off point 8 m away along the narrow side is never in view with a fixed heading. 0:
     the fixed heading of the papers."""
+    weathervane_min_tilt_rad: float | None = None
+    """Turn the heading, outside the scan, so that the camera's wider field of view lies along the
+    vehicle's steady lean once that lean exceeds this tilt (rad). A vehicle holding against 12 m/s of
+    wind leans 22-26 deg (the Matrice 100); along the view's narrow side (32 deg half-view for paper
+    000's camera) that puts the point below the vehicle near the image edge and the pad leaves the view
+    in every gust, along the wide side (45 deg) it stays in. PX4's weathervane turns the nose into the
+    wind for the same reason a fixed-wing does; here the camera's axis sets which way. None: off (the
+    papers' fixed heading)."""
+    wide_view_axis_B_rad: float = 0.0
+    """Direction of the camera's wider field of view in the body's xy plane (rad, from body x toward body
+    y); the preset builder derives it from the camera model and its mount. Only its direction modulo pi
+    matters."""
+    weathervane_yaw_rate_rad_s: float = 0.5
+    """Largest turn rate of the weathervane (rad/s)."""
+    weathervane_time_constant_s: float = 2.0
+    """Low-pass time constant of the lean the weathervane follows (s): long enough that a manoeuvre or a
+    gust does not swing the heading, short enough to follow a wind that turns."""
     search_expansions: int = 2
     """After a full pass over the search area without a sighting, search a ring around it this many times
     (a moving platform that was not found has most likely driven out of the area)."""
@@ -158,6 +176,18 @@ class GuidanceConfig:
             )
         if not math.isfinite(self.scan_yaw_rate_rad_s):
             raise ValueError(f"scan_yaw_rate_rad_s must be finite, got {self.scan_yaw_rate_rad_s}")
+        if self.weathervane_min_tilt_rad is not None and not (
+            0.0 <= self.weathervane_min_tilt_rad < math.pi / 2
+        ):
+            raise ValueError(
+                f"weathervane_min_tilt_rad must be in [0, pi/2) or None, got {self.weathervane_min_tilt_rad}"
+            )
+        if not math.isfinite(self.wide_view_axis_B_rad):
+            raise ValueError(f"wide_view_axis_B_rad must be finite, got {self.wide_view_axis_B_rad}")
+        for name in ("weathervane_yaw_rate_rad_s", "weathervane_time_constant_s"):
+            v = getattr(self, name)
+            if not (v > 0.0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be positive and finite, got {v}")
         if self.no_feasible not in ("keep", "extend"):
             raise ValueError(f"no_feasible must be 'keep' or 'extend', got {self.no_feasible!r}")
         if not 0.0 < self.speed_margin <= 1.0:
@@ -197,6 +227,12 @@ def _platform_jerk(target: PlatformEstimate) -> FloatArray:
         return _ZERO3
     w = (vx * ay - vy * ax) / speed2
     return np.array([-w * ay, w * ax, 0.0])
+
+
+def _peak_vertical_accel(traj: MinJerkTrajectory) -> float:
+    """Largest |vertical acceleration| of a primitive, sampled at 17 points (m/s^2): a quintic's
+    acceleration is a cubic, whose extremes a grid of this density finds within a few per cent."""
+    return max(abs(float(traj.sample_packed(tk)[2, 2])) for tk in np.linspace(traj.t0, traj.t_end, 17))
 
 
 class _SplitAxes:
@@ -253,6 +289,8 @@ class Guidance:
         self._t_search = 0.0
         self._yaw = self.config.yaw
         self._t_yaw: float | None = None
+        self._lean_lp = (0.0, 0.0)
+        self._t_lean: float | None = None
         self._abort_phase = ""
         self._abort_xy = np.zeros(2)
         self._abort_ground_z = 0.0
@@ -320,6 +358,7 @@ class Guidance:
         """Replan for ``mode`` at time ``t`` (called at the planner's rate). ``mission``: the state
         machine, for its descent hold and its final action's phase and goal."""
         self._update_aim(t, mode, ego)
+        self._update_lean(t, ego)
         if self._t_start is None:
             self._t_start = t
         self._descent_hold = mission is not None and mission.descent_hold
@@ -534,12 +573,22 @@ class Guidance:
         if not self.config.intercept:
             return plan
         z_end = float(plan.sample(plan.t_end)[0][2])
-        T_z = max(2.0, 2.0 * abs(z_end - float(p0[2])) / self.config.cruise_speed_mps)
-        if plan.t_end - t <= T_z:
-            return plan
         pf = np.array([p0[0], p0[1], z_end])
-        z = MinJerkTrajectory.from_boundary(t, T_z, p0, v0, a0, pf, _ZERO3, _ZERO3)
-        return _SplitAxes(plan, z)
+        T_z = max(2.0, 2.0 * abs(z_end - float(p0[2])) / self.config.cruise_speed_mps)
+        # Long enough that the height profile asks for no more vertical acceleration than the airframe
+        # gives (the climb's limit, and half of g downward): from a 5 m/s climb toward a point 2 m below,
+        # 2 s asks for -15 m/s^2, more than gravity gives with the motors idle; the vehicle cannot
+        # follow, falls more than 1 m/s off the reference, each replanning restarts from its velocity,
+        # and the reference keeps climbing (envelope wind, seed 2469339022: 83 m up). No more than it
+        # starts with either, when that is already beyond the limit.
+        a_limit = max(min(self.config.max_climb_accel_mps2, 0.5 * _GRAVITY), abs(float(a0[2])))
+        while True:
+            z = MinJerkTrajectory.from_boundary(t, T_z, p0, v0, a0, pf, _ZERO3, _ZERO3)
+            if plan.t_end - t <= T_z:
+                return plan
+            if _peak_vertical_accel(z) <= a_limit or T_z >= 30.0:
+                return _SplitAxes(plan, z)
+            T_z *= 1.5
 
     @staticmethod
     def _predict(
@@ -657,14 +706,57 @@ class Guidance:
         self._z_land = max(self._z_land - speed * dt, z_floor)
         return self._z_land, (-speed if self._z_land > z_floor else 0.0)
 
+    def _update_lean(self, t: float, ego: EgoState) -> None:
+        """Low-pass the horizontal part of the body z axis (the thrust direction), for the weathervane.
+        Scalars only: it runs at the planner's rate."""
+        if self.config.weathervane_min_tilt_rad is None:
+            return
+        x, y, z, w = ego.q_WB.tolist()
+        zb_x, zb_y = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x)
+        prev, self._t_lean = self._t_lean, t
+        if not (math.isfinite(zb_x) and math.isfinite(zb_y)):
+            return
+        if prev is None or not 0.0 < t - prev <= 0.5:
+            return  # no recent sample to filter from: keep the lean
+        gain = (t - prev) / (self.config.weathervane_time_constant_s + t - prev)
+        lx, ly = self._lean_lp
+        self._lean_lp = (lx + gain * (zb_x - lx), ly + gain * (zb_y - ly))
+
+    def weathervane_goal(self) -> float | None:
+        """The heading (rad) that puts the camera's wider view along the filtered lean, the nearer of the
+        two that do (they differ by pi), or None while the lean is below ``weathervane_min_tilt_rad``
+        (or the weathervane is off)."""
+        cfg = self.config
+        if cfg.weathervane_min_tilt_rad is None:
+            return None
+        lx, ly = self._lean_lp
+        if math.hypot(lx, ly) <= math.sin(cfg.weathervane_min_tilt_rad):
+            return None
+        goal = math.atan2(ly, lx) - cfg.wide_view_axis_B_rad
+        error = wrap_angle(goal - self._yaw)
+        if error > 0.5 * math.pi:
+            error -= math.pi
+        elif error <= -0.5 * math.pi:
+            error += math.pi
+        return wrap_angle(self._yaw + error)
+
     def _heading(self, t: float, mode: Mode) -> tuple[float, float]:
         """Heading (rad) and heading rate (rad/s) of the reference at ``t``: turning at
-        ``scan_yaw_rate_rad_s`` in the modes where nothing is in view, else held where it is."""
-        rate = self.config.scan_yaw_rate_rad_s if mode in _SCAN_MODES else 0.0
-        if self._t_yaw is not None and rate != 0.0:
-            self._yaw = wrap_angle(self._yaw + rate * max(t - self._t_yaw, 0.0))
+        ``scan_yaw_rate_rad_s`` in the modes where nothing is in view; in the others turning toward the
+        weathervane's goal at most at ``weathervane_yaw_rate_rad_s`` when it has one, else held."""
+        dt = 0.0 if self._t_yaw is None else max(t - self._t_yaw, 0.0)
         self._t_yaw = t
-        return self._yaw, rate
+        rate = self.config.scan_yaw_rate_rad_s if mode in _SCAN_MODES else 0.0
+        if rate != 0.0:
+            self._yaw = wrap_angle(self._yaw + rate * dt)
+            return self._yaw, rate
+        goal = self.weathervane_goal()
+        if goal is None or dt <= 0.0:
+            return self._yaw, 0.0
+        limit = self.config.weathervane_yaw_rate_rad_s
+        step = min(max(wrap_angle(goal - self._yaw), -limit * dt), limit * dt)
+        self._yaw = wrap_angle(self._yaw + step)
+        return self._yaw, step / dt
 
     def _search_reference(self, t: float, target: PlatformEstimate, yaw: float, yaw_rate: float) -> Reference:
         """The spiral around the predicted platform (module docstring): its centre moves with the

@@ -113,6 +113,8 @@ _MISSION_OPTIONAL = (
     "land_hold_timeout_s",
     "land_commit_timeout_s",
     "land_commit_speed_change_mps",
+    "land_commit_max_tilt_rad",
+    "land_tilt_min_spread_rad",
     "land_commit_ground_margin_m",
     "final_action",
 )
@@ -172,6 +174,19 @@ def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
         h_fov, v_fov = camera.fov_rad()
         return min(float(min(h_fov, v_fov)), math.radians(120.0))
     return math.radians(float(fov))
+
+
+def _wide_view_axis_B_rad(s: Any, camera: Any, mount: CameraMount) -> float:
+    """Direction in the body's xy plane (rad from body x toward body y) of the camera's wider field of
+    view: the image x axis (columns) when the horizontal field is the wider, else the image y axis,
+    carried into B by the mount. For the ground-truth sensor its ``perception.fov_deg`` on the same
+    mount. A round view (equal fields) has no wider axis; the weathervane then keeps the image x axis
+    along the lean, which costs nothing."""
+    h_fov, v_fov = (
+        camera.fov_rad() if camera is not None else tuple(math.radians(f) for f in s.perception.fov_deg)
+    )
+    axis_B = mount.R_BC[:, 0] if h_fov >= v_fov else mount.R_BC[:, 1]
+    return math.atan2(float(axis_B[1]), float(axis_B[0]))
 
 
 def _controller(airframe: Airframe, eff: EffectiveBlocks) -> Controller:
@@ -274,6 +289,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
         GuidanceConfig(
             search_area=(area.x_min, area.x_max, area.y_min, area.y_max),
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
+            wide_view_axis_B_rad=_wide_view_axis_B_rad(s, camera, mount),
             search_pattern=s.mission.search_pattern,
             aim_camera=s.mission.aim_camera,
             max_platform_speed_mps=_mission_value(s, eff, "max_platform_speed_mps"),
@@ -290,6 +306,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
                     "takeoff_climb_speed_mps",
                     "scan_yaw_rate_rad_s",
                     "track_view_sigmas",
+                    "weathervane_min_tilt_rad",
                 )
                 if (v := _mission_value(s, eff, k)) is not None
             },
