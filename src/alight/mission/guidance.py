@@ -97,7 +97,8 @@ class GuidanceConfig:
     the fixed heading of the papers."""
     weathervane_min_tilt_rad: float | None = None
     """Turn the heading, outside the scan, so that the camera's wider field of view lies along the
-    vehicle's steady lean once that lean exceeds this tilt (rad). A vehicle holding against 12 m/s of
+    vehicle's steady lean against wind and drag (the side force per unit mass, low-passed; not the lean
+    spent on its own acceleration) once that lean exceeds this tilt (rad). A vehicle holding against 12 m/s of
     wind leans 22-26 deg (the Matrice 100); along the view's narrow side (32 deg half-view for paper
     000's camera) that puts the point below the vehicle near the image edge and the pad leaves the view
     in every gust, along the wide side (45 deg) it stays in. PX4's weathervane turns the nose into the
@@ -290,7 +291,7 @@ class Guidance:
         self._yaw = self.config.yaw
         self._t_yaw: float | None = None
         self._lean_lp = (0.0, 0.0)
-        self._t_lean: float | None = None
+        self._v_lean: tuple[float, float, float, float] | None = None
         self._abort_phase = ""
         self._abort_xy = np.zeros(2)
         self._abort_ground_z = 0.0
@@ -707,30 +708,37 @@ class Guidance:
         return self._z_land, (-speed if self._z_land > z_floor else 0.0)
 
     def _update_lean(self, t: float, ego: EgoState) -> None:
-        """Low-pass the horizontal part of the body z axis (the thrust direction), for the weathervane.
-        Scalars only: it runs at the planner's rate."""
+        """Low-pass the side force per unit mass over g, for the weathervane: the lean the thrust keeps
+        against wind and drag, not the part spent on the vehicle's own acceleration (a figure-8's turns
+        would swing the heading: 20 -> 16 of 20 landed when the weathervane followed the raw lean).
+        Measured as in :meth:`_update_aim`. Scalars only: it runs at the planner's rate."""
         if self.config.weathervane_min_tilt_rad is None:
             return
         x, y, z, w = ego.q_WB.tolist()
-        zb_x, zb_y = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x)
-        prev, self._t_lean = self._t_lean, t
-        if not (math.isfinite(zb_x) and math.isfinite(zb_y)):
+        zb_x, zb_y, zb_z = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
+        vx, vy, vz = ego.v_WB.tolist()
+        prev, self._v_lean = self._v_lean, (t, vx, vy, vz)
+        if not zb_z > 0.2 or prev is None or not 0.0 < t - prev[0] <= 0.5:
+            return  # upside down, not finite, or no recent velocity to difference: keep the lean
+        dt = t - prev[0]
+        ax, ay, az = (vx - prev[1]) / dt, (vy - prev[2]) / dt, (vz - prev[3]) / dt
+        scale = (1.0 + az / _GRAVITY) / zb_z
+        dx, dy = zb_x * scale - ax / _GRAVITY, zb_y * scale - ay / _GRAVITY
+        if not (math.isfinite(dx) and math.isfinite(dy)):
             return
-        if prev is None or not 0.0 < t - prev <= 0.5:
-            return  # no recent sample to filter from: keep the lean
-        gain = (t - prev) / (self.config.weathervane_time_constant_s + t - prev)
+        gain = dt / (self.config.weathervane_time_constant_s + dt)
         lx, ly = self._lean_lp
-        self._lean_lp = (lx + gain * (zb_x - lx), ly + gain * (zb_y - ly))
+        self._lean_lp = (lx + gain * (dx - lx), ly + gain * (dy - ly))
 
     def weathervane_goal(self) -> float | None:
-        """The heading (rad) that puts the camera's wider view along the filtered lean, the nearer of the
-        two that do (they differ by pi), or None while the lean is below ``weathervane_min_tilt_rad``
-        (or the weathervane is off)."""
+        """The heading (rad) that puts the camera's wider view along the filtered side force, the nearer
+        of the two that do (they differ by pi), or None while that force is below the tangent of
+        ``weathervane_min_tilt_rad`` times g (or the weathervane is off)."""
         cfg = self.config
         if cfg.weathervane_min_tilt_rad is None:
             return None
         lx, ly = self._lean_lp
-        if math.hypot(lx, ly) <= math.sin(cfg.weathervane_min_tilt_rad):
+        if math.hypot(lx, ly) <= math.tan(cfg.weathervane_min_tilt_rad):
             return None
         goal = math.atan2(ly, lx) - cfg.wide_view_axis_B_rad
         error = wrap_angle(goal - self._yaw)
