@@ -22,7 +22,13 @@ from alight.control.high_level import (
 )
 from alight.control.l1_adaptive import L1AugmentedController, L1Config, faessler2017_l1
 from alight.control.mixer import PriorityMixer, low_level, mix
-from alight.control.rate import BodyRateController, RateControllerGains, pack_low_level_params, rate_torque
+from alight.control.rate import (
+    BodyRateController,
+    RateControllerGains,
+    pack_low_level_params,
+    rate_torque,
+    tilt_time_constant_s,
+)
 from alight.types import Command, EgoState, FloatArray, Reference
 
 
@@ -62,6 +68,7 @@ class Mixer(Protocol):
 
 
 def _faessler2017(airframe: Airframe, **options: Any) -> Controller:
+    options.setdefault("tau_tilt", tilt_time_constant_s(airframe))
     return HighLevelController(airframe, HighLevelGains(**options))
 
 

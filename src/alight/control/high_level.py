@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit, types
 
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
+from alight.control.rate import tilt_time_constant_s
 from alight.rotation_kernels import quat_to_R
 from alight.types import GRAVITY_MPS2, Command, EgoState, FloatArray, Reference
 
@@ -597,7 +598,7 @@ class HighLevelController:
 
     def __init__(self, airframe: Airframe = DEFAULT_AIRFRAME, gains: HighLevelGains | None = None) -> None:
         self.airframe = airframe
-        self.gains = gains if gains is not None else HighLevelGains()
+        self.gains = gains if gains is not None else HighLevelGains(tau_tilt=tilt_time_constant_s(airframe))
         self.params = pack_high_level_params(airframe, self.gains)
         self._tan_tilt_own = float(self.params[HL_TAN_TILT])
         self._integ = np.zeros(3)

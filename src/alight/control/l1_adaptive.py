@@ -99,6 +99,7 @@ from numba import njit, types
 
 from alight.airframe import Airframe
 from alight.control.high_level import HL_DRAG, HL_MASS, HighLevelController, HighLevelGains
+from alight.control.rate import tilt_time_constant_s
 from alight.rotation_kernels import quat_to_R
 from alight.types import GRAVITY_MPS2, Command, EgoState, FloatArray, Reference
 
@@ -459,5 +460,6 @@ def faessler2017_l1(airframe: Airframe, **options: Any) -> L1AugmentedController
     l1_names = {f.name for f in fields(L1Config)}
     l1_opts = {k: v for k, v in options.items() if k in l1_names}
     gain_opts = {k: v for k, v in options.items() if k not in l1_names}
+    gain_opts.setdefault("tau_tilt", tilt_time_constant_s(airframe))
     base = HighLevelController(airframe, HighLevelGains(**gain_opts))
     return L1AugmentedController(base, L1Config(**l1_opts))

@@ -117,7 +117,7 @@ class PriorityMixer:
 
     def __init__(self, airframe: Airframe = DEFAULT_AIRFRAME) -> None:
         self.airframe = airframe
-        self.params = pack_low_level_params(airframe, RateControllerGains())
+        self.params = pack_low_level_params(airframe, RateControllerGains.for_airframe(airframe))
 
     @property
     def allocation(self) -> FloatArray:

@@ -56,6 +56,39 @@ class RateControllerGains:
             raise ValueError(f"k_rate must be positive and finite (positive-definite K_w), got {k}")
         object.__setattr__(self, "k_rate", k)
 
+    @classmethod
+    def for_airframe(cls, airframe: Airframe) -> RateControllerGains:
+        """The defaults, slowed for an airframe whose motors are too slow for them: a proportional rate
+        loop through a first-order motor of time constant tau (the mean of ``motor_tau_up`` and
+        ``motor_tau_down``) has the damping 1 / (2 sqrt(K tau)); the roll/pitch gain is capped at
+        ``1 / (4 zeta^2 tau)`` for zeta = 0.6 (the yaw gain scaled alike). The F450's motors (tau 19 ms)
+        allow 37 1/s, so it keeps 25; the Matrice 100's (38 ms, assumed) get 18.5: with 25 its loop
+        rang (zeta 0.45), saturated the motors in fast manoeuvres, and the mixer's torque priority
+        raised the collective until the vehicle climbed hundreds of metres (alight_speed, 14 m/s)."""
+        k_max = rate_gain_limit(airframe)
+        default = cls()
+        scale = min(1.0, k_max / default.k_rate[0])
+        return cls(k_rate=tuple(k * scale for k in default.k_rate))  # type: ignore[arg-type]
+
+
+def tilt_time_constant_s(airframe: Airframe) -> float:
+    """Time constant of the tilt feedback (HighLevelGains.tau_tilt) for the airframe: the default 0.12 s,
+    or three times the rate loop's time constant when the motors slow that loop (a cascade keeps its
+    outer loop about 3x slower than its inner one, as the defaults do: 8.3 against 25 1/s)."""
+    k = RateControllerGains.for_airframe(airframe).k_rate[0]
+    return max(0.12, 3.0 / k)
+
+
+RATE_LOOP_DAMPING = 0.6
+"""Least damping of the roll/pitch rate loop through the motors' lag (RateControllerGains.for_airframe)."""
+
+
+def rate_gain_limit(airframe: Airframe) -> float:
+    """Largest roll/pitch rate gain (1/s) that keeps the rate loop's damping at RATE_LOOP_DAMPING through
+    the airframe's motor lag: 1 / (4 zeta^2 tau), tau the mean of the spin-up and spin-down constants."""
+    tau = 0.5 * (airframe.motor_tau_up + airframe.motor_tau_down)
+    return 1.0 / (4.0 * RATE_LOOP_DAMPING**2 * tau)
+
 
 def pack_low_level_params(
     airframe: Airframe = DEFAULT_AIRFRAME, rate_gains: RateControllerGains | None = None
@@ -65,7 +98,7 @@ def pack_low_level_params(
     Raises ValueError when the allocation is singular or a unit of collective thrust does not raise every
     rotor's thrust (the mixer's priority scheme needs both).
     """
-    gains = rate_gains if rate_gains is not None else RateControllerGains()
+    gains = rate_gains if rate_gains is not None else RateControllerGains.for_airframe(airframe)
     A = airframe.allocation
     if abs(np.linalg.det(A)) < 1e-12:
         raise ValueError("the airframe's allocation matrix is singular")
@@ -110,7 +143,7 @@ class BodyRateController:
         self, airframe: Airframe = DEFAULT_AIRFRAME, gains: RateControllerGains | None = None
     ) -> None:
         self.airframe = airframe
-        self.gains = gains if gains is not None else RateControllerGains()
+        self.gains = gains if gains is not None else RateControllerGains.for_airframe(airframe)
         self.params = pack_low_level_params(airframe, self.gains)
 
     def torque(self, w_cmd: FloatArray, w: FloatArray) -> FloatArray:

@@ -22,7 +22,7 @@ from alight.cameras.pinhole import CameraMount, PinholeCamera
 from alight.control import Controller
 from alight.control.high_level import HighLevelController, HighLevelGains
 from alight.control.l1_adaptive import L1AugmentedController, L1Config
-from alight.control.rate import RateControllerGains
+from alight.control.rate import RateControllerGains, tilt_time_constant_s
 from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosEnergyModel, QosSetting
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.kim_ukf import KimUkf
@@ -194,7 +194,10 @@ def _controller(airframe: Airframe, eff: EffectiveBlocks) -> Controller:
     p = c.params
     ki = p.integral_gain
     gains = HighLevelGains.from_bandwidth(
-        p.position_bandwidth_rad_s, ki=(ki, ki, ki), integral_limit=p.integral_limit_mps2
+        p.position_bandwidth_rad_s,
+        ki=(ki, ki, ki),
+        integral_limit=p.integral_limit_mps2,
+        tau_tilt=tilt_time_constant_s(airframe),
     )
     controller: Controller = HighLevelController(airframe, gains)
     if c.name == "faessler_l1":
@@ -328,7 +331,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
         s.preset,
         pipeline,
         mount,
-        RateControllerGains(),
+        RateControllerGains.for_airframe(airframe),
         uses_camera=uses_camera,
         camera=camera,
         pad=pad,
