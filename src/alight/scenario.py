@@ -548,7 +548,7 @@ class MissionSpec(_Strict):
     preset's (``alight`` waits), else off."""
     land_tilt_min_spread_rad: NonNegFloat | None = None
     """With ``land_commit_max_tilt_rad``: wait only while the tilt's standard deviation over the last
-    ~2 s exceeds this (rad); a steady lean (a fast deck in calm air) is what the vehicle lands with
+    ~2 s is at least this (rad); a steady lean (a fast deck in calm air) is what the vehicle lands with
     however long it waits. None: the preset's, else 0."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
@@ -593,11 +593,11 @@ class MissionSpec(_Strict):
     omnidirectional camera of ``kim_kaist`` it changes nothing the camera sees."""
     weathervane_min_tilt_rad: float | None = Field(default=None, ge=0.0, lt=1.5, allow_inf_nan=False)
     """Outside the scan, turn the heading (at most 0.5 rad/s) so that the camera's wider field of view
-    lies along the vehicle's steady lean (2 s low-pass of the thrust direction) once that lean exceeds
-    this tilt (rad): holding against a strong wind, or behind a fast platform against the rotor drag,
-    the point below the vehicle then stays inside the view. None: the preset's (``alight`` turns), else
-    off, the papers' fixed heading. Acts on every preset; with the omnidirectional camera of
-    ``kim_kaist``, whose view is round, it changes nothing the camera sees."""
+    lies along the vehicle's steady lean against wind and drag (2 s low-pass of the side force, not the
+    lean spent on its own turns) once that lean exceeds this tilt (rad): holding against a strong wind,
+    or behind a fast platform, the point below the vehicle then stays inside the view. None: the
+    preset's (``alight`` turns), else off, the papers' fixed heading. Acts on every preset; with the
+    omnidirectional camera of ``kim_kaist``, whose view is round, it changes nothing the camera sees."""
     takeoff_climb_speed_mps: PositiveFloat | None = None
     """Peak vertical speed of the take-off climb (m/s), within the airframe's spare thrust (the climb's
     peak acceleration at most half of ``(thrust_to_weight - 1) g``). A platform that drives past the
