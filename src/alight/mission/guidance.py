@@ -230,6 +230,31 @@ def _platform_jerk(target: PlatformEstimate) -> FloatArray:
     return np.array([-w * ay, w * ax, 0.0])
 
 
+_VelocitySample = tuple[float, float, float, float]
+
+
+def _side_force_over_g(
+    t: float, ego: EgoState, prev: _VelocitySample | None
+) -> tuple[_VelocitySample, tuple[float, float, float] | None]:
+    """The horizontal side force per unit mass over g that the thrust holds against (wind, drag): the
+    tilt not spent on the vehicle's own acceleration, that acceleration measured by differencing the
+    estimated velocity since ``prev``. Returns this call's velocity sample (the next call's ``prev``)
+    and ``(dt, f_x / (m g), f_y / (m g))``, or None when upside down, not finite, or without a velocity
+    sample from the last 0.5 s."""
+    x, y, z, w = ego.q_WB.tolist()
+    zb_x, zb_y, zb_z = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
+    vx, vy, vz = ego.v_WB.tolist()
+    sample = (t, vx, vy, vz)
+    if not zb_z > 0.2 or prev is None or not 0.0 < t - prev[0] <= 0.5:
+        return sample, None
+    dt = t - prev[0]
+    ax, ay, az = (vx - prev[1]) / dt, (vy - prev[2]) / dt, (vz - prev[3]) / dt
+    # The thrust direction is (a - f/m + g e3) / |.|, so the side force per unit mass over g is
+    # tan(tilt) (1 + a_z / g) - a_xy / g.
+    scale = (1.0 + az / _GRAVITY) / zb_z
+    return sample, (dt, zb_x * scale - ax / _GRAVITY, zb_y * scale - ay / _GRAVITY)
+
+
 def _peak_vertical_accel(traj: MinJerkTrajectory) -> float:
     """Largest |vertical acceleration| of a primitive, sampled at 17 points (m/s^2): a quintic's
     acceleration is a cubic, whose extremes a grid of this density finds within a few per cent."""
@@ -322,18 +347,10 @@ class Guidance:
         loop that diverges (a 4 m/s pattern flown at 12 m/s)."""
         if not self.config.aim_camera or mode not in _AIMED_MODES:
             return
-        x, y, z, w = ego.q_WB.tolist()
-        zb_x, zb_y, zb_z = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
-        vx, vy, vz = ego.v_WB.tolist()
-        prev, self._v_aim = self._v_aim, (t, vx, vy, vz)
-        if not zb_z > 0.2 or prev is None or not 0.0 < t - prev[0] <= 0.5:
+        self._v_aim, measured = _side_force_over_g(t, ego, self._v_aim)
+        if measured is None:
             return  # upside down, not finite, or no recent velocity to difference: keep the offset
-        dt = t - prev[0]
-        ax, ay, az = (vx - prev[1]) / dt, (vy - prev[2]) / dt, (vz - prev[3]) / dt
-        # The thrust direction is (a - f/m + g e3) / |.|, so the side force per unit mass over g is
-        # tan(tilt) (1 + a_z / g) - a_xy / g.
-        scale = (1.0 + az / _GRAVITY) / zb_z
-        dx, dy = zb_x * scale - ax / _GRAVITY, zb_y * scale - ay / _GRAVITY
+        dt, dx, dy = measured
         gain = dt / (self.config.aim_time_constant_s + dt)
         lx, ly = self._tilt_tan_lp
         lx, ly = lx + gain * (dx - lx), ly + gain * (dy - ly)
@@ -714,16 +731,10 @@ class Guidance:
         Measured as in :meth:`_update_aim`. Scalars only: it runs at the planner's rate."""
         if self.config.weathervane_min_tilt_rad is None:
             return
-        x, y, z, w = ego.q_WB.tolist()
-        zb_x, zb_y, zb_z = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
-        vx, vy, vz = ego.v_WB.tolist()
-        prev, self._v_lean = self._v_lean, (t, vx, vy, vz)
-        if not zb_z > 0.2 or prev is None or not 0.0 < t - prev[0] <= 0.5:
+        self._v_lean, measured = _side_force_over_g(t, ego, self._v_lean)
+        if measured is None:
             return  # upside down, not finite, or no recent velocity to difference: keep the lean
-        dt = t - prev[0]
-        ax, ay, az = (vx - prev[1]) / dt, (vy - prev[2]) / dt, (vz - prev[3]) / dt
-        scale = (1.0 + az / _GRAVITY) / zb_z
-        dx, dy = zb_x * scale - ax / _GRAVITY, zb_y * scale - ay / _GRAVITY
+        dt, dx, dy = measured
         if not (math.isfinite(dx) and math.isfinite(dy)):
             return
         gain = dt / (self.config.weathervane_time_constant_s + dt)
