@@ -132,7 +132,7 @@ class MissionConfig:
     """The descent holds at the commit height until the vehicle's tilt, low-passed over
     ``land_tilt_time_constant_s``, is below this (rad), then commits; it waits at most
     ``land_tilt_wait_s``, then goes around. A vehicle holding against strong wind leans, and turbulence
-    swings the lean by +-10 deg around it within a second or two: the contact judge (and a real gear)
+    swings the lean by +-7 deg (one sigma) within a second or two: the contact judge (and a real gear)
     tolerates 25 deg, so the last second of the descent is started in a lull, as a ship's helicopter
     waits for a quiescent deck. None: off (the papers' descent, which commits on its position gates
     alone)."""
