@@ -305,7 +305,7 @@ class Guidance:
         self._z_entry = 0.0
         self._last_ref: Reference | None = None
         self._tilt_tan_lp = (0.0, 0.0)
-        self._v_aim: tuple[float, float, float, float] | None = None
+        self._v_aim: _VelocitySample | None = None
         self._aim_W = np.zeros(3)
         self.plans_adopted = 0
         self._descent_hold = False
@@ -316,7 +316,7 @@ class Guidance:
         self._yaw = self.config.yaw
         self._t_yaw: float | None = None
         self._lean_lp = (0.0, 0.0)
-        self._v_lean: tuple[float, float, float, float] | None = None
+        self._v_lean: _VelocitySample | None = None
         self._abort_phase = ""
         self._abort_xy = np.zeros(2)
         self._abort_ground_z = 0.0
@@ -601,9 +601,9 @@ class Guidance:
         # starts with either, when that is already beyond the limit.
         a_limit = max(min(self.config.max_climb_accel_mps2, 0.5 * _GRAVITY), abs(float(a0[2])))
         while True:
-            z = MinJerkTrajectory.from_boundary(t, T_z, p0, v0, a0, pf, _ZERO3, _ZERO3)
             if plan.t_end - t <= T_z:
-                return plan
+                return plan  # the plan's own height profile is no shorter: fly it as it is
+            z = MinJerkTrajectory.from_boundary(t, T_z, p0, v0, a0, pf, _ZERO3, _ZERO3)
             if _peak_vertical_accel(z) <= a_limit or T_z >= 30.0:
                 return _SplitAxes(plan, z)
             T_z *= 1.5
