@@ -550,6 +550,11 @@ class MissionSpec(_Strict):
     """With ``land_commit_max_tilt_rad``: wait only while the tilt's standard deviation over the last
     ~2 s is at least this (rad); a steady lean (a fast deck in calm air) is what the vehicle lands with
     however long it waits. None: the preset's, else 0."""
+    land_commit_max_platform_accel_mps2: PositiveFloat | None = None
+    """Hold the descent at the commit height while the platform estimate's horizontal acceleration (a
+    turn's centripetal ``v omega``) is above this (m/s^2), for at most 20 s, then go around: the last
+    ~0.5 s flown blind on the prediction is not started in a hard turn that may end under it (a
+    tractor's U-turn). None: the preset's (``alight`` waits above 1.5), else off."""
     final_action: Literal["hover", "return", "land_in_place"] | None = None
     """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
     land in place."""

@@ -25,3 +25,13 @@ def test_the_lull_gate_keys_act_on_every_preset(preset: str) -> None:
         assert (default.land_commit_max_tilt_rad, default.land_tilt_min_spread_rad) == (0.28, 0.087)
     else:
         assert default.land_commit_max_tilt_rad is None  # the papers commit on their position gates
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_the_turn_gate_key_acts_on_every_preset(preset: str) -> None:
+    cfg = _mission(preset, land_commit_max_platform_accel_mps2=2.0).config
+    assert cfg.land_commit_max_platform_accel_mps2 == 2.0
+    default = _mission(preset).config.land_commit_max_platform_accel_mps2
+    assert default == (1.5 if preset == "alight" else None)  # the papers commit on their position gates
+    with pytest.raises(Exception, match="land_commit_max_platform_accel_mps2"):
+        _mission(preset, land_commit_max_platform_accel_mps2=float("nan"))

@@ -23,12 +23,14 @@ def ego(p=(0.0, 0.0, 0.1), v=(0.0, 0.0, 0.0), t=0.0) -> EgoState:
     )
 
 
-def target(t: float, p=(5.0, 0.0, PAD_Z), v=(1.0, 0.0, 0.0), age=0.0, std=0.1) -> PlatformEstimate:
+def target(
+    t: float, p=(5.0, 0.0, PAD_Z), v=(1.0, 0.0, 0.0), age=0.0, std=0.1, a=(0.0, 0.0, 0.0)
+) -> PlatformEstimate:
     return PlatformEstimate(
         t=t,
         p_WP=np.array(p),
         v_WP=np.array(v),
-        a_WP=np.zeros(3),
+        a_WP=np.array(a, dtype=float),
         yaw=0.0,
         cov_p_WP=np.eye(3) * std**2,
         t_last_measurement=t - age,
@@ -345,6 +347,59 @@ def test_the_lull_gate_waits_out_an_unsteady_lean_only_and_pauses_a_committed_de
     assert m.committed and not m.descent_hold
 
 
+def test_the_turn_gate_waits_for_a_hard_turn_to_end_and_pauses_a_committed_descent() -> None:
+    """Worked by hand: the limit is 1.5 m/s^2; a platform at 3 m/s turning at 0.75 rad/s (a tractor's
+    4 m U-turn) accelerates sideways at 2.25 m/s^2, so the descent holds at the commit height; once the
+    estimate drives straight (0.3 m/s^2 of noise) it commits. A 10 m circle at 2 m/s (0.4) commits at
+    once."""
+    cfg = dataclasses.replace(CFG, land_commit_max_platform_accel_mps2=1.5)
+    low = (5.0, 0, PAD_Z + cfg.land_commit_height_m - 0.05)
+    u_turn, straight, circle = (0.0, 2.25, 0.0), (0.0, 0.3, 0.0), (-0.4, 0.0, 0.0)
+    m = at_mode(Mode.LAND, cfg)
+    assert (
+        m.step(3.0, ego(p=low, v=(3.0, 0, 0)), target(3.0, v=(3.0, 0, 0), a=u_turn), None).mode is Mode.LAND
+    )
+    assert m.descent_hold and not m.committed
+    assert m.events[-1].kind == "descent_hold" and "platform turning at 2.25 m/s^2" in m.events[-1].reason
+    m.step(3.1, ego(p=low, v=(3.0, 0, 0)), target(3.1, v=(3.0, 0, 0), a=straight), None)
+    assert not m.descent_hold  # released ...
+    m.step(3.2, ego(p=low, v=(3.0, 0, 0)), target(3.2, v=(3.0, 0, 0), a=straight), None)
+    assert m.committed  # ... and committed at the next step, as after any hold
+    m = at_mode(Mode.LAND, cfg)
+    m.step(3.0, ego(p=low, v=(2.0, 0, 0)), target(3.0, v=(2.0, 0, 0), a=circle), None)
+    assert m.committed
+    # a turn that starts after the commit pauses the descent above half the commit height only
+    m.step(3.1, ego(p=low, v=(2.0, 0, 0)), target(3.1, v=(2.0, 0, 0), a=u_turn), None)
+    assert m.committed and m.descent_hold and m.mode is Mode.LAND
+    lower = (5.0, 0, PAD_Z + 0.4 * cfg.land_commit_height_m)
+    m.step(3.2, ego(p=lower, v=(2.0, 0, 0)), target(3.2, v=(2.0, 0, 0), a=u_turn), None)
+    assert m.committed and not m.descent_hold
+    # a turn that lasts land_tilt_wait_s: go-around, with its own reason
+    m = at_mode(Mode.LAND, cfg)
+    m.step(3.0, ego(p=low, v=(3.0, 0, 0)), target(3.0, v=(3.0, 0, 0), a=u_turn), None)
+    t_end = 3.0 + cfg.land_tilt_wait_s
+    assert (
+        m.step(
+            t_end - 0.1, ego(p=low, v=(3.0, 0, 0)), target(t_end - 0.1, v=(3.0, 0, 0), a=u_turn), None
+        ).mode
+        is Mode.LAND
+    )
+    status = m.step(
+        t_end + 0.1, ego(p=low, v=(3.0, 0, 0)), target(t_end + 0.1, v=(3.0, 0, 0), a=u_turn), None
+    )
+    assert status.mode is Mode.GO_AROUND and status.reason == "the platform kept turning hard"
+    # a non-finite acceleration shuts the gate (the prediction is not to be flown on)
+    m = at_mode(Mode.LAND, cfg)
+    m.step(3.0, ego(p=low, v=(3.0, 0, 0)), target(3.0, v=(3.0, 0, 0), a=(np.nan, 0.0, 0.0)), None)
+    assert m.descent_hold and not m.committed
+    # off by default: the U-turn commits at once
+    m = at_mode(Mode.LAND)
+    m.step(3.0, ego(p=low, v=(3.0, 0, 0)), target(3.0, v=(3.0, 0, 0), a=u_turn), None)
+    assert m.committed
+    with pytest.raises(ValueError, match="land_commit_max_platform_accel_mps2"):
+        MissionConfig(land_commit_max_platform_accel_mps2=-1.0)
+
+
 def test_sinking_through_the_commit_height_during_a_hold_does_not_commit() -> None:
     """A vehicle that lags its held reference and sinks below the commit height while a gate is marginal
     (the platform braked) is not committed: the gates still apply, and a bad one goes around."""
@@ -516,6 +571,7 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_land_without_estimate_goes_around,
         test_a_marginal_gate_holds_the_descent_then_goes_around,
         test_the_lull_gate_holds_the_commit_until_the_tilt_drops_then_goes_around,
+        test_the_turn_gate_waits_for_a_hard_turn_to_end_and_pauses_a_committed_descent,
         test_the_lull_gate_waits_out_an_unsteady_lean_only_and_pauses_a_committed_descent,
         test_sinking_through_the_commit_height_during_a_hold_does_not_commit,
         test_a_committed_descent_without_touchdown_goes_around,

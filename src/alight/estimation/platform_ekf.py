@@ -83,6 +83,13 @@ I_PX, I_PY, I_PZ, I_THETA, I_V, I_OMEGA = 0, 1, 2, 3, 4, 5
 # --------------------------------------------------------------------------------------------------
 
 
+TURN_JERK_CORNER_SPEED_MPS = 2.0
+"""Speed (m/s) below which ``turn_jerk_noise`` fades: the turn-acceleration density it adds is
+``j v / (v^2 + v_c^2)``, the lateral jerk's ``j / v`` well above ``v_c`` and a curvature rate's
+``(j / v_c^2) v`` well below (a vehicle at rest does not turn; with ``j / max(v, 1 m/s)`` the turn rate
+of a platform standing for 3 s wandered by several rad/s, and the estimate curled when it drove on)."""
+
+
 @njit(cache=True)
 def _wrap(a: float, period: float) -> float:
     """``a`` wrapped to [-period/2, period/2)."""
@@ -157,12 +164,14 @@ def unicycle_jacobian(x: FloatArray, dt: float, F: FloatArray) -> None:
 
 @njit(cache=True)
 def unicycle_process_noise(x: FloatArray, dt: float, q: FloatArray, Q: FloatArray) -> None:
-    """Process noise ``Q`` (n, n) integrated over ``|dt|`` (s) for white noises of densities ``q`` (5,):
+    """Process noise ``Q`` (n, n) integrated over ``|dt|`` (s) for white noises of densities ``q`` (6,):
     tangential acceleration (m/s^2/sqrt(Hz)), heading rate (rad/s/sqrt(Hz)), turn acceleration
     (rad/s^2/sqrt(Hz), only with ``omega``), horizontal and vertical position random walks
-    (m/s/sqrt(Hz)). Exact integrals for the model linearised about straight motion at the mid-step
-    heading (an impulse on ``d(v_t)/dt`` at lag ``u`` before the end moves p by ``u`` along the heading,
-    one on ``d(theta)/dt`` by ``v_t u`` across it, one on ``d(omega)/dt`` by ``v_t u^2 / 2``)."""
+    (m/s/sqrt(Hz)), lateral jerk (m/s^3/sqrt(Hz), only with ``omega``: it adds
+    ``(q[5] v_t / (v_t^2 + TURN_JERK_CORNER_SPEED_MPS^2))^2`` to the turn acceleration's variance; a
+    5-element ``q`` has none). Exact integrals for the model linearised about straight motion at the
+    mid-step heading (an impulse on ``d(v_t)/dt`` at lag ``u`` before the end moves p by ``u`` along the
+    heading, one on ``d(theta)/dt`` by ``v_t u`` across it, one on ``d(omega)/dt`` by ``v_t u^2 / 2``)."""
     n = x.shape[0]
     h = abs(dt)
     v = x[I_V]
@@ -175,6 +184,8 @@ def unicycle_process_noise(x: FloatArray, dt: float, q: FloatArray, Q: FloatArra
     sa2 = q[0] * q[0]
     sh2 = q[1] * q[1]
     sw2 = q[2] * q[2] if n == 6 else 0.0
+    if n == 6 and q.shape[0] > 5 and q[5] > 0.0:
+        sw2 += (q[5] * v / (v * v + TURN_JERK_CORNER_SPEED_MPS**2)) ** 2
     h2 = h * h
     h3 = h2 * h
     # along-track (e) and cross-track (nn) position variances
@@ -485,6 +496,13 @@ class PlatformEkfConfig:
     """Heading-rate noise on eq. 2d (rad/s/sqrt(Hz)); with ``use_turn_rate`` keep it small."""
     turn_accel_noise: float = 0.3
     """Noise on d(omega)/dt (rad/s^2/sqrt(Hz)), used with ``use_turn_rate``."""
+    turn_jerk_noise: float = 0.0
+    """Noise on the rate of the lateral acceleration ``v_t omega`` (m/s^3/sqrt(Hz)), used with
+    ``use_turn_rate``: it adds ``turn_jerk_noise / v_t`` to the turn acceleration noise (fading below
+    ``TURN_JERK_CORNER_SPEED_MPS``), so that a slow vehicle may change its turn rate quickly and a fast
+    one only slowly, as a vehicle whose side force is limited does. 0: off (the fixed ``turn_accel_noise``). A tractor entering or leaving its U-turn
+    steps omega by 0.75 rad/s; with 0.1 rad/s^2/sqrt(Hz) the estimate took 2-3 s to follow, its heading
+    10-20 deg off meanwhile, while 2.0 at every speed made the 12 m/s estimate chase each PnP fix."""
     horizontal_noise: float = 0.05
     """Horizontal position random walk (m/s/sqrt(Hz)): pad offset from the vehicle's turning point, slip."""
     vertical_noise: float = 0.05
@@ -545,6 +563,7 @@ class PlatformEkfConfig:
             "horizontal_noise",
             "vertical_noise",
             "maneuver_accel_noise",
+            "turn_jerk_noise",
             "maneuver_hold_s",
         ):
             v = getattr(self, name)
@@ -587,7 +606,7 @@ class PlatformEkfConfig:
         return 6 if self.use_turn_rate else 5
 
     def noise_vector(self) -> FloatArray:
-        """The densities in the order :func:`unicycle_process_noise` takes them, (5,)."""
+        """The densities in the order :func:`unicycle_process_noise` takes them, (6,)."""
         return np.array(
             [
                 self.accel_noise,
@@ -595,6 +614,7 @@ class PlatformEkfConfig:
                 self.turn_accel_noise,
                 self.horizontal_noise,
                 self.vertical_noise,
+                self.turn_jerk_noise,
             ]
         )
 
