@@ -550,6 +550,9 @@ class MissionSpec(_Strict):
     """With ``land_commit_max_tilt_rad``: wait only while the tilt's standard deviation over the last
     ~2 s is at least this (rad); a steady lean (a fast deck in calm air) is what the vehicle lands with
     however long it waits. None: the preset's, else 0."""
+    land_steady_tilt_max_rad: float | None = Field(default=None, gt=0.0, lt=1.5, allow_inf_nan=False)
+    """With ``land_commit_max_tilt_rad``: a lean above this (rad) holds the commit even when steady (the
+    gear would touch the deck leaning that far). None: the preset's (``alight``: 0.42), else no limit."""
     land_commit_max_platform_accel_mps2: PositiveFloat | None = None
     """Hold the descent at the commit height while the platform estimate's horizontal acceleration (a
     turn's centripetal ``v omega``) is above this (m/s^2), for at most 20 s, then go around: the last

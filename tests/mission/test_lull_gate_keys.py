@@ -35,3 +35,10 @@ def test_the_turn_gate_key_acts_on_every_preset(preset: str) -> None:
     assert default == (1.5 if preset == "alight" else None)  # the papers commit on their position gates
     with pytest.raises(Exception, match="land_commit_max_platform_accel_mps2"):
         _mission(preset, land_commit_max_platform_accel_mps2=float("nan"))
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_the_steady_tilt_ceiling_key_acts_on_every_preset(preset: str) -> None:
+    assert _mission(preset, land_steady_tilt_max_rad=0.4).config.land_steady_tilt_max_rad == 0.4
+    default = _mission(preset).config.land_steady_tilt_max_rad
+    assert default == (0.42 if preset == "alight" else None)

@@ -400,6 +400,25 @@ def test_the_turn_gate_waits_for_a_hard_turn_to_end_and_pauses_a_committed_desce
         MissionConfig(land_commit_max_platform_accel_mps2=-1.0)
 
 
+def test_a_steady_lean_above_the_ceiling_still_holds_the_commit() -> None:
+    """With a spread limit, a steady lean commits (waiting would change nothing) only below
+    land_steady_tilt_max_rad: 0.40 rad steady commits under a 0.42 ceiling, 0.45 rad steady waits."""
+    cfg = dataclasses.replace(
+        CFG, land_commit_max_tilt_rad=0.3, land_tilt_min_spread_rad=0.05, land_steady_tilt_max_rad=0.42
+    )
+    low = (5.0, 0, PAD_Z + cfg.land_commit_height_m - 0.05)
+    for tilt, held in ((0.40, False), (0.45, True)):
+        m = at_mode(Mode.LAND, cfg)
+        for k in range(5):
+            m.step(3.0 + 0.1 * k, tilted(low, (1.0, 0, 0), tilt), target(3.0 + 0.1 * k), None)
+            if m.committed:
+                break
+        assert m.tilt_sd_rad == 0.0
+        assert (m.descent_hold and not m.committed) if held else m.committed, tilt
+    with pytest.raises(ValueError, match="land_steady_tilt_max_rad"):
+        MissionConfig(land_steady_tilt_max_rad=1.6)
+
+
 def test_sinking_through_the_commit_height_during_a_hold_does_not_commit() -> None:
     """A vehicle that lags its held reference and sinks below the commit height while a gate is marginal
     (the platform braked) is not committed: the gates still apply, and a bad one goes around."""

@@ -500,9 +500,10 @@ class PlatformEkfConfig:
     """Noise on the rate of the lateral acceleration ``v_t omega`` (m/s^3/sqrt(Hz)), used with
     ``use_turn_rate``: it adds ``turn_jerk_noise / v_t`` to the turn acceleration noise (fading below
     ``TURN_JERK_CORNER_SPEED_MPS``), so that a slow vehicle may change its turn rate quickly and a fast
-    one only slowly, as a vehicle whose side force is limited does. 0: off (the fixed ``turn_accel_noise``). A tractor entering or leaving its U-turn
-    steps omega by 0.75 rad/s; with 0.1 rad/s^2/sqrt(Hz) the estimate took 2-3 s to follow, its heading
-    10-20 deg off meanwhile, while 2.0 at every speed made the 12 m/s estimate chase each PnP fix."""
+    one only slowly, as a vehicle whose side force is limited does. 0: off (the fixed
+    ``turn_accel_noise``). A tractor entering or leaving its U-turn steps omega by 0.75 rad/s; with 0.1
+    rad/s^2/sqrt(Hz) the estimate took 2-3 s to follow, its heading 10-20 deg off meanwhile, while 2.0
+    at every speed made the 12 m/s estimate chase each PnP fix."""
     horizontal_noise: float = 0.05
     """Horizontal position random walk (m/s/sqrt(Hz)): pad offset from the vehicle's turning point, slip."""
     vertical_noise: float = 0.05

@@ -115,6 +115,7 @@ _MISSION_OPTIONAL = (
     "land_commit_speed_change_mps",
     "land_commit_max_tilt_rad",
     "land_tilt_min_spread_rad",
+    "land_steady_tilt_max_rad",
     "land_commit_max_platform_accel_mps2",
     "land_commit_ground_margin_m",
     "final_action",

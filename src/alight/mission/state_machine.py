@@ -136,6 +136,13 @@ class MissionConfig:
     tolerates 25 deg, so the last second of the descent is started in a lull, as a ship's helicopter
     waits for a quiescent deck. None: off (the papers' descent, which commits on its position gates
     alone)."""
+    land_steady_tilt_max_rad: float | None = None
+    """With ``land_commit_max_tilt_rad``: a lean above this (rad) holds the commit even when it is steady
+    (its spread below ``land_tilt_min_spread_rad``). A steady lean is what the vehicle lands with however
+    long it waits, which is acceptable up to what the gear tolerates and not above: the Matrice 100 holding
+    12 m/s of wind leans 21-35 deg around a 28 deg mean on some seeds, a spread just under 5 deg, and
+    committed into it touched down at 30-35 deg. Waiting there gives the circling deck time to turn
+    downwind (less airspeed, less lean), or ends in a go-around. None: no limit."""
     land_commit_max_platform_accel_mps2: float | None = None
     """The descent holds at the commit height until the platform estimate's horizontal acceleration (the
     centripetal ``v_t omega`` of a turning unicycle) is at most this (m/s^2), then commits; committed, it
@@ -199,6 +206,7 @@ class MissionConfig:
             "land_commit_ground_margin_m",
             "land_commit_max_tilt_rad",
             "land_commit_max_platform_accel_mps2",
+            "land_steady_tilt_max_rad",
             "land_tilt_wait_s",
             "land_tilt_time_constant_s",
             "lost_timeout_s",
@@ -214,6 +222,7 @@ class MissionConfig:
                 "land_commit_ground_margin_m",
                 "land_commit_max_tilt_rad",
                 "land_commit_max_platform_accel_mps2",
+                "land_steady_tilt_max_rad",
             ):
                 continue
             if not (math.isfinite(value) and value > 0):
@@ -221,6 +230,9 @@ class MissionConfig:
         spread = self.land_tilt_min_spread_rad
         if not (math.isfinite(spread) and spread >= 0.0):
             raise ValueError(f"mission.land_tilt_min_spread_rad must be >= 0 and finite, got {spread}")
+        steady = self.land_steady_tilt_max_rad
+        if steady is not None and steady >= math.pi / 2:
+            raise ValueError(f"mission.land_steady_tilt_max_rad must be < pi/2, got {steady:g}")
         if self.land_commit_max_tilt_rad is not None and self.land_commit_max_tilt_rad >= math.pi / 2:
             raise ValueError(
                 f"mission.land_commit_max_tilt_rad must be < pi/2, got {self.land_commit_max_tilt_rad:g}"
@@ -382,9 +394,10 @@ class Mission:
         cfg = self.config
         if cfg.land_commit_max_tilt_rad is None:
             return False
-        return (
-            self.tilt_lp_rad > cfg.land_commit_max_tilt_rad
-            and self.tilt_sd_rad >= cfg.land_tilt_min_spread_rad
+        ceiling = cfg.land_steady_tilt_max_rad
+        return self.tilt_lp_rad > cfg.land_commit_max_tilt_rad and (
+            self.tilt_sd_rad >= cfg.land_tilt_min_spread_rad
+            or (ceiling is not None and self.tilt_lp_rad > ceiling)
         )
 
     def _turning_hard(self, target: PlatformEstimate) -> bool:
