@@ -10,6 +10,7 @@ controller's rate.
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections.abc import Callable
@@ -94,21 +95,26 @@ class EgoHistory:
 
     def pose_at(self, t: float) -> tuple[FloatArray, FloatArray] | None:
         """(p_WB, R_WB) at time t, or None when t is outside the stored span by more than 50 ms."""
-        if self._n == 0:
+        n = self._n
+        if n == 0:
             return None
-        idx = self._order()
-        ts = self.t[idx]
-        k = int(np.searchsorted(ts, t))
+        # The ring's samples oldest first are slots (start + j) % size, j < n: bisect on them in place
+        # (the first j with a time >= t, as np.searchsorted on the ordered times, without ordering them).
+        size = self.t.size
+        start = (self._i - n) % size
+        ring_t = self.t
+        k = bisect.bisect_left(range(n), t, key=lambda j: ring_t[(start + j) % size])
         if k == 0:
-            if ts[0] - t > 0.05:
+            if ring_t[start] - t > 0.05:
                 return None
-            return self.p[idx[0]].copy(), quat_to_rotmat(self.q[idx[0]])
-        if k == ts.size:
-            if t - ts[-1] > 0.05:
+            return self.p[start].copy(), quat_to_rotmat(self.q[start])
+        last = (start + n - 1) % size
+        if k == n:
+            if t - ring_t[last] > 0.05:
                 return None
-            return self.p[idx[-1]].copy(), quat_to_rotmat(self.q[idx[-1]])
-        i0, i1 = idx[k - 1], idx[k]
-        s = (t - ts[k - 1]) / max(ts[k] - ts[k - 1], 1e-9)
+            return self.p[last].copy(), quat_to_rotmat(self.q[last])
+        i0, i1 = (start + k - 1) % size, (start + k) % size
+        s = (t - ring_t[i0]) / max(ring_t[i1] - ring_t[i0], 1e-9)
         p = (1 - s) * self.p[i0] + s * self.p[i1]
         q1 = self.q[i1] if np.dot(self.q[i0], self.q[i1]) >= 0 else -self.q[i1]
         q = (1 - s) * self.q[i0] + s * q1
