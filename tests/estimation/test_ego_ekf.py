@@ -13,6 +13,7 @@ from alight.errors import EstimationError
 from alight.estimation.ego_ekf import (
     EgoEkf,
     EgoEkfConfig,
+    _mahalanobis2_3,
     ego_error_jacobian,
     ego_inject,
     ego_step,
@@ -474,3 +475,15 @@ def test_predict_imu_many_rejects_time_going_backwards() -> None:
     with pytest.raises(EstimationError, match="before the filter time"):
         f.predict_imu_many(ts, fs, np.zeros((4, 3)))
     assert f.t == 0.010  # the two good samples were applied
+
+
+def test_odometry_gate_distance_matches_a_linear_solve() -> None:
+    """The gate's e^T S^-1 e (Python floats, by the adjugate) against numpy's solve; None when singular."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        A = rng.normal(size=(3, 3))
+        S = A @ A.T + np.diag(rng.uniform(1e-4, 1.0, 3))
+        e = rng.normal(size=3) * rng.uniform(0.01, 10.0)
+        expected = float(e @ np.linalg.solve(S, e))
+        assert _mahalanobis2_3(S.tolist(), e.tolist()) == pytest.approx(expected, rel=1e-9)
+    assert _mahalanobis2_3([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 0.0, 1.0]], [1.0, 0.0, 0.0]) is None

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from numba import njit
 
 from alight.airframe import DEFAULT_AIRFRAME as AF
 from alight.control.rate import pack_low_level_params
@@ -157,3 +158,76 @@ def test_the_deck_brakes_at_the_moment_of_contact():
     R = Q.quat_to_rotmat(xs2[-1, Q.SL_Q])
     assert math.degrees(math.acos(min(1.0, R[2, 2]))) < 3.0
     assert np.max(np.abs(fs[:, 0])) > 3.0  # the accelerometer feels the braking through the feet
+
+
+@njit(cache=False)
+def _step_contact_every_stage(x, u, f_ext, v_wind, par, dt, deck, deck_tau, cp):  # type: ignore[no-untyped-def]
+    """The RK4 step as it was before ``feet_clear``: the contact derivative in every stage (reference)."""
+    f0 = x[Q.IX_F : Q.IX_F + 4].copy()
+    c = np.empty(4)
+    tau = np.empty(4)
+    for i in range(4):
+        c[i] = min(max(u[i], par[Q.PAR_F_MIN]), par[Q.PAR_F_MAX])
+        tau[i] = par[Q.PAR_TAU_UP] if c[i] >= f0[i] else par[Q.PAR_TAU_DOWN]
+    f_mid = np.empty(4)
+    f_end = np.empty(4)
+    Q._motor_thrust_at(f0, c, tau, 0.5 * dt, f_mid)
+    Q._motor_thrust_at(f0, c, tau, dt, f_end)
+    d0 = np.empty(Q.N_DK)
+    dm = np.empty(Q.N_DK)
+    d1 = np.empty(Q.N_DK)
+    Q.deck_at(deck, deck_tau, d0)
+    Q.deck_at(deck, deck_tau + 0.5 * dt, dm)
+    Q.deck_at(deck, deck_tau + dt, d1)
+    fc = np.empty(3)
+    tc = np.empty(3)
+    y0 = x[:13]
+    k1, k2, k3, k4, tmp = np.empty(13), np.empty(13), np.empty(13), np.empty(13), np.empty(13)
+    Q._contact_deriv(y0, f0, f_ext, v_wind, par, d0, cp, fc, tc, k1)
+    for j in range(13):
+        tmp[j] = y0[j] + 0.5 * dt * k1[j]
+    Q._contact_deriv(tmp, f_mid, f_ext, v_wind, par, dm, cp, fc, tc, k2)
+    for j in range(13):
+        tmp[j] = y0[j] + 0.5 * dt * k2[j]
+    Q._contact_deriv(tmp, f_mid, f_ext, v_wind, par, dm, cp, fc, tc, k3)
+    for j in range(13):
+        tmp[j] = y0[j] + dt * k3[j]
+    Q._contact_deriv(tmp, f_end, f_ext, v_wind, par, d1, cp, fc, tc, k4)
+    out = np.empty(Q.NX)
+    h6 = dt / 6.0
+    for j in range(13):
+        out[j] = y0[j] + h6 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    nq = math.sqrt(out[6] ** 2 + out[7] ** 2 + out[8] ** 2 + out[9] ** 2)
+    for j in range(6, 10):
+        out[j] /= nq
+    for i in range(4):
+        out[Q.IX_F + i] = f_end[i]
+    return out
+
+
+def test_step_contact_skips_the_contact_only_where_it_is_zero():
+    """``feet_clear`` lets a step leave out the contact's derivative high above every surface: the same
+    numbers, bit for bit, as the contact derivative in every RK4 stage, from high above down through the
+    deck's and the ground's contact (tilted, spinning, on and beside the deck)."""
+    rng = np.random.default_rng(11)
+    wind = np.array([1.0, -0.5, 0.0])
+    for _ in range(400):
+        z = rng.uniform(-0.05, 1.2) if rng.random() < 0.8 else rng.uniform(1.2, 5.0)
+        q = rng.normal(size=4) * np.array([0.1, 0.1, 1.0, 1.0])
+        x = Q.initial_state(np.array([rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5), z]))
+        x[Q.SL_Q] = q / np.linalg.norm(q)
+        x[Q.SL_V] = rng.normal(size=3)
+        x[Q.SL_W] = rng.normal(size=3)
+        x[Q.SL_F] = rng.uniform(0.0, 5.0, 4)
+        u = rng.uniform(0.0, 6.0, 4)
+        deck = _deck(v=rng.normal(size=3) * [2, 2, 0.1], a=rng.normal(size=3), yaw=rng.uniform(-3, 3),
+                     yaw_rate=rng.normal() * 0.3)  # fmt: skip
+        if rng.random() < 0.2:
+            deck = Q.no_deck()
+        tau = rng.uniform(0.0, 0.005)
+        got = Q.step_contact(x, u, wind, wind, PAR, DT, deck, tau, CP)
+        want = _step_contact_every_stage(x, u, wind, wind, PAR, DT, deck, tau, CP)
+        np.testing.assert_array_equal(got, want)
+        if Q.feet_clear(float(x[2]), deck, CP):
+            f, t, counts = np.empty(3), np.empty(3), np.empty(2)
+            assert Q.contact_wrench(x, deck, CP, f, t, counts) == 0

@@ -8,6 +8,10 @@ gyro's white noise at that level is below what matters for the outer loops.
 
 The contact of the feet with the deck and the ground is part of the dynamics
 (:func:`alight.sim.quadrotor.step_contact`); whether the motors run is only ever the pipeline's command.
+
+numba's cache of these kernels is keyed on this file's content alone: the machine code of the callees
+from ``sim/quadrotor.py`` and ``control/`` is compiled into it, and a change there reaches an existing
+cache only when this file changes too (or its ``__pycache__`` entries are removed).
 """
 
 from __future__ import annotations

@@ -119,14 +119,13 @@ def run_mission(
         if world.outcome is not None:
             break
         x = world.x
-        p_WB, v_WB, q_WB, w_WB_B = x[SL_P], x[SL_V], x[SL_Q], x[SL_W]
 
         # -- sensors into the pipeline ------------------------------------------------------------------
         pipeline.on_imu(t, imu_out[0:3], imu_out[3:6])
         if k % every_odometry == 0:
             odo = world.odometry_message()
             if odo is not None:
-                pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB, world.faults.odometry_reset_counter)
+                pipeline.on_odometry(t, odo.p_WB, odo.q_WB, odo.v_WB, faults.odometry_reset_counter)
         if not pipeline.ego_estimator.initialized:
             continue
         if k % every_range == 0:
@@ -186,11 +185,11 @@ def run_mission(
             log.append(
                 t,
                 mode=mode.value,
-                p_WB=p_WB,
-                v_WB=v_WB,
+                p_WB=x[SL_P],
+                v_WB=x[SL_V],
                 p_WB_est=ego.p_WB,
                 v_WB_est=ego.v_WB,
-                q_WB=q_WB,
+                q_WB=x[SL_Q],
                 q_WB_est=ego.q_WB,
                 p_WP=truth_p[k],
                 v_WP=truth_v[k],
@@ -200,7 +199,7 @@ def run_mission(
                 v_ref=None if ref is None else ref.v,
                 thrust_N=thrust_N,
                 w_cmd=w_cmd,
-                w_WB_B=w_WB_B,
+                w_WB_B=x[SL_W],
                 range_m=pipeline.range_m,
                 f_wind_W=world.f_wind,
                 motor_N=x[IX_F : IX_F + 4],

@@ -58,6 +58,7 @@ from alight.sim.quadrotor import (
     DK_V,
     DK_YAW,
     DK_YAW_RATE,
+    N_DK,
     SL_P,
     SL_Q,
     SL_V,
@@ -325,6 +326,17 @@ class World:
         self.n_ticks = int(round(s.duration_s / TICK_DT))
         # The platform's path does not depend on the flight: its states at every tick, computed at once.
         self.truths = self.platform.states(np.arange(self.n_ticks + 1, dtype=np.float64) * TICK_DT)
+        # ... and the deck inputs of a physics batch starting at each tick (layout DK_*), packed once:
+        # one row copy per batch instead of five small slice assignments.
+        tr = self.truths
+        self._deck_rows = deck_rows = np.empty((self.n_ticks + 1, N_DK))
+        deck_rows[:, DK_ON] = 1.0
+        deck_rows[:, DK_HALF] = 0.5 * s.platform.pad_size_m
+        deck_rows[:, DK_P : DK_P + 3] = tr.p_WP
+        deck_rows[:, DK_V : DK_V + 3] = tr.v_WP
+        deck_rows[:, DK_A : DK_A + 3] = tr.a_WP
+        deck_rows[:, DK_YAW] = tr.yaw
+        deck_rows[:, DK_YAW_RATE] = tr.yaw_rate
         self.k = 0
         self.t = 0.0
         self.airborne = False
@@ -346,7 +358,8 @@ class World:
         self.low_z = s.platform.pad_height_m + reach
         self.f_wind: FloatArray = np.zeros(3)
         self.last_range_m = math.inf  # the latest reading as the sensor reported it (faults applied)
-        self._batch_xs = self._batch_imu = self._batch_touch = np.empty((0, 0))
+        self._batch_xs = self._batch_imu = np.empty((0, 0))
+        self._batch_touch: list[list[float]] = []  # feet on (deck, ground) after each tick of the batch
         self._batch_i = self._batch_n = 0
 
     @classmethod
@@ -415,30 +428,27 @@ class World:
         # Up to the next command tick (the inputs are constant in between), cut short where a first
         # contact is to be judged or an IMU bias step is due; wind and deck stamped at the batch's start.
         x, inputs, k = self.x, self.inputs, self.k
-        tr = self.truths
         if not self.windless:
             self.f_wind = self.wind.force_W(self.t, x[SL_P], x[SL_V])
             inputs[IN_F_EXT : IN_F_EXT + 3] = self.f_wind
             inputs[IN_V_WIND : IN_V_WIND + 3] = self.wind.air_velocity_W(self.t)
         # the deck at the batch's start; the kernel carries it forward with its acceleration and turn
-        inputs[IN_DECK + DK_P : IN_DECK + DK_P + 3] = tr.p_WP[k]
-        inputs[IN_DECK + DK_V : IN_DECK + DK_V + 3] = tr.v_WP[k]
-        inputs[IN_DECK + DK_A : IN_DECK + DK_A + 3] = tr.a_WP[k]
-        inputs[IN_DECK + DK_YAW] = tr.yaw[k]
-        inputs[IN_DECK + DK_YAW_RATE] = tr.yaw_rate[k]
+        inputs[IN_DECK : IN_DECK + N_DK] = self._deck_rows[k]
         m = min(self.every_control - k % self.every_control, self.n_ticks - k)
         m = self.faults.before_imu_batch(
             k + 1, m, self.imu
         )  # a bias step due now; a batch ends before the next
         bias, noise, scale = self.imu.kernel_inputs_many(m)
         gear = self.airframe.gear_height
-        self._batch_xs, self._batch_imu, self._batch_touch, self._batch_n = tick_batch(
+        self._batch_xs, self._batch_imu, touch, self._batch_n = tick_batch(
             x, inputs, self.sim_params, self.ll_params, bias, noise, scale, PHYSICS_DT, self.n_sub,
             self.contact_params, m, self.low_z if self.airborne and self.contact is None else -math.inf,
             math.inf if self.airborne else gear + 0.05,
         )  # fmt: skip
         self.imu.used(self._batch_n)
         self._batch_i = 0
+        # read per tick as (deck, ground) pairs of Python floats: cheaper than numpy scalars
+        self._batch_touch = touch.tolist()
 
     def step(self) -> FloatArray:
         """Advance one tick; returns the IMU sample at the new time (specific force (m/s^2) and body rate
@@ -449,14 +459,13 @@ class World:
         self.x_prev = self.x
         self.x = x = self._batch_xs[i]
         sample: FloatArray = self._batch_imu[i]
-        self.on_deck = on_deck = int(self._batch_touch[i, 0])
-        self.on_ground = on_ground = int(self._batch_touch[i, 1])
+        deck_ground = self._batch_touch[i]
+        self.on_deck = on_deck = int(deck_ground[0])
+        self.on_ground = on_ground = int(deck_ground[1])
         self._batch_i += 1
         self.k = k = self.k + 1
         self.t = t = k * TICK_DT
-        gear = self.airframe.gear_height
-        p_WB = x[SL_P]
-        if not self.airborne and p_WB[2] - gear > 0.05:
+        if not self.airborne and x[2] - self.airframe.gear_height > 0.05:  # x[2]: the height of p_WB
             self.airborne = True
         if self.airborne and (on_deck or on_ground or self.touching):
             self._judge_contact(on_deck, on_ground)
@@ -464,7 +473,7 @@ class World:
                 return sample
         if self.t_motors_off is not None and t - self.t_motors_off >= self.scenario.contact.settle_s:
             settled, self.outcome_reason = judge_settled(
-                p_WB, quat_to_rotmat(x[SL_Q]), self.truths.at(k), self.scenario.platform.pad_size_m,
+                x[SL_P], quat_to_rotmat(x[SL_Q]), self.truths.at(k), self.scenario.platform.pad_size_m,
                 self.limits, on_deck, on_ground, ground_ok=self.ground_ok,
             )  # fmt: skip
             if settled is Outcome.CRASHED:

@@ -10,11 +10,12 @@ controller's rate.
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -94,21 +95,26 @@ class EgoHistory:
 
     def pose_at(self, t: float) -> tuple[FloatArray, FloatArray] | None:
         """(p_WB, R_WB) at time t, or None when t is outside the stored span by more than 50 ms."""
-        if self._n == 0:
+        n = self._n
+        if n == 0:
             return None
-        idx = self._order()
-        ts = self.t[idx]
-        k = int(np.searchsorted(ts, t))
+        # The ring's samples oldest first are slots (start + j) % size, j < n: bisect on them in place
+        # (the first j with a time >= t, as np.searchsorted on the ordered times, without ordering them).
+        size = self.t.size
+        start = (self._i - n) % size
+        ring_t = self.t
+        k = bisect.bisect_left(range(n), t, key=lambda j: ring_t[(start + j) % size])
         if k == 0:
-            if ts[0] - t > 0.05:
+            if ring_t[start] - t > 0.05:
                 return None
-            return self.p[idx[0]].copy(), quat_to_rotmat(self.q[idx[0]])
-        if k == ts.size:
-            if t - ts[-1] > 0.05:
+            return self.p[start].copy(), quat_to_rotmat(self.q[start])
+        last = (start + n - 1) % size
+        if k == n:
+            if t - ring_t[last] > 0.05:
                 return None
-            return self.p[idx[-1]].copy(), quat_to_rotmat(self.q[idx[-1]])
-        i0, i1 = idx[k - 1], idx[k]
-        s = (t - ts[k - 1]) / max(ts[k] - ts[k - 1], 1e-9)
+            return self.p[last].copy(), quat_to_rotmat(self.q[last])
+        i0, i1 = (start + k - 1) % size, (start + k) % size
+        s = (t - ring_t[i0]) / max(ring_t[i1] - ring_t[i0], 1e-9)
         p = (1 - s) * self.p[i0] + s * self.p[i1]
         q1 = self.q[i1] if np.dot(self.q[i0], self.q[i1]) >= 0 else -self.q[i1]
         q = (1 - s) * self.q[i0] + s * q1
@@ -193,6 +199,12 @@ class Pipeline:
         self._set_view_tilt = detector.set_view_tilt if isinstance(detector, TiltAware) else None
         self._set_range = detector.set_range if isinstance(detector, RangeAware) else None
         self._set_tilt_limit = controller.set_tilt_limit if isinstance(controller, TiltLimited) else None
+        # ... and the per-frame and per-measurement ones (an isinstance on a runtime-checkable Protocol
+        # walks the Protocol's attributes: tens of microseconds at the camera's rate)
+        self._fuses_telemetry = isinstance(pe, TelemetryFusing)
+        self._will_process: Callable[[float], bool] | None = (
+            detector.will_process if isinstance(detector, FrameGate) else None
+        )
         self._z_takeoff: float | None = None  # the estimated height where the take-off started (m)
         self._tilt_limited = False
         self.stats = PipelineStats()
@@ -288,9 +300,9 @@ class Pipeline:
         velocity (3,) m/s in W, the receiver's covariance (3, 3) m^2. The platform estimator fuses it
         when it can (:class:`alight.estimation.TelemetryFusing`; the runner refuses telemetry for one that
         cannot); True when used."""
-        est = self.platform_estimator
-        if not isinstance(est, TelemetryFusing):
+        if not self._fuses_telemetry:
             return False
+        est = cast(TelemetryFusing, self.platform_estimator)  # checked once, in __init__
         self.stats.telemetry_fixes += 1
         t0 = time.perf_counter()
         used = est.update_telemetry(t_stamp, p_WP, v_WP, cov)
@@ -319,8 +331,7 @@ class Pipeline:
         """Whether :meth:`on_image` on the image captured at ``t_capture``, called next, has the detector
         read the image: False only for a :class:`~alight.perception.FrameGate` detector that will skip
         it (then any stand-in image does, and the image need not be made)."""
-        d = self.detector
-        return not isinstance(d, FrameGate) or d.will_process(t_capture)
+        return self._will_process is None or self._will_process(t_capture)
 
     def _pixel_prediction(self, t_capture: float) -> tuple[FloatArray | None, float | None]:
         if self._predict_pixel is None or not self.platform_estimator.has_measurement:
@@ -359,8 +370,8 @@ class Pipeline:
             used = self.platform_estimator.update(measurement)
         self.stats.charge("platform_estimator", t0)
         if used:
-            if isinstance(self.platform_estimator, TelemetryFusing):
-                self.platform_estimator.learn_telemetry_bias(measurement)
+            if self._fuses_telemetry:
+                cast(TelemetryFusing, self.platform_estimator).learn_telemetry_bias(measurement)
             self.stats.measurements += 1
             if self.stats.t_first_detection is None:
                 self.stats.t_first_detection = t_capture
@@ -381,7 +392,7 @@ class Pipeline:
             # PositionResetting: the estimator restarted at a jumped odometry pose; hand on one continuous
             # frame, in which the platform estimate, the plan and the pose history stay where they were
             d = getattr(self.ego_estimator, "reset_delta_p_WB", None)
-            if d is not None and d.any():
+            if d is not None and any(d.tolist()):  # numpy's any() costs a microsecond per call here
                 ego = EgoState.trusted(ego.t, ego.p_WB - d, ego.v_WB, ego.q_WB, ego.w_WB_B, ego.a_WB)
             self._ego = ego
             self.stats.charge("ego_estimator", t0)

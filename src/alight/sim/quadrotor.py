@@ -369,6 +369,16 @@ def deck_at(deck: FloatArray, tau: float, out: FloatArray) -> None:
 
 
 @njit(cache=True)
+def feet_clear(z_WB: float, deck: FloatArray, cp: FloatArray) -> bool:
+    """True when no foot can touch the deck (``deck``, ``DK_*``) or the ground with the body origin at
+    height ``z_WB`` (m), whatever the attitude: :func:`contact_wrench` is then zero."""
+    gh, gw = cp[CP_GEAR_H], cp[CP_GEAR_W]
+    reach = math.sqrt(gh * gh + 2.0 * gw * gw)
+    top = deck[DK_P + 2] if deck[DK_ON] > 0.5 and deck[DK_P + 2] > 0.0 else 0.0
+    return z_WB - reach > top
+
+
+@njit(cache=True)
 def contact_wrench(
     y: FloatArray, deck: FloatArray, cp: FloatArray, f_W: FloatArray, tau_B: FloatArray, counts: FloatArray
 ) -> int:
@@ -387,12 +397,10 @@ def contact_wrench(
         tau_B[j] = 0.0
     counts[0] = 0.0
     counts[1] = 0.0
-    gh, gw = cp[CP_GEAR_H], cp[CP_GEAR_W]
-    reach = math.sqrt(gh * gh + 2.0 * gw * gw)
-    deck_on = deck[DK_ON] > 0.5
-    top = deck[DK_P + 2] if deck_on and deck[DK_P + 2] > 0.0 else 0.0
-    if y[2] - reach > top:
+    if feet_clear(y[2], deck, cp):
         return 0  # no foot can reach a surface: the common case, kept cheap
+    gh, gw = cp[CP_GEAR_H], cp[CP_GEAR_W]
+    deck_on = deck[DK_ON] > 0.5
     qx, qy, qz, qw = y[6], y[7], y[8], y[9]
     n2 = qx * qx + qy * qy + qz * qz + qw * qw
     s = 2.0 / n2
@@ -537,16 +545,30 @@ def step_contact(
     k3 = np.empty(13)
     k4 = np.empty(13)
     tmp = np.empty(13)
-    _contact_deriv(y0, f0, f_ext_W, v_wind_W, params, d0, cp, fc, tc, k1)
+    # High above every surface (the common case) the contact adds nothing: the rigid body's derivative
+    # alone is the same number, without the contact's calls (which cost more than its arithmetic).
+    if feet_clear(y0[2], d0, cp):
+        _rigid_body_deriv(y0, f0, f_ext_W, v_wind_W, params, k1)
+    else:
+        _contact_deriv(y0, f0, f_ext_W, v_wind_W, params, d0, cp, fc, tc, k1)
     for j in range(13):
         tmp[j] = y0[j] + 0.5 * dt * k1[j]
-    _contact_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, dm, cp, fc, tc, k2)
+    if feet_clear(tmp[2], dm, cp):
+        _rigid_body_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, k2)
+    else:
+        _contact_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, dm, cp, fc, tc, k2)
     for j in range(13):
         tmp[j] = y0[j] + 0.5 * dt * k2[j]
-    _contact_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, dm, cp, fc, tc, k3)
+    if feet_clear(tmp[2], dm, cp):
+        _rigid_body_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, k3)
+    else:
+        _contact_deriv(tmp, f_mid, f_ext_W, v_wind_W, params, dm, cp, fc, tc, k3)
     for j in range(13):
         tmp[j] = y0[j] + dt * k3[j]
-    _contact_deriv(tmp, f_end, f_ext_W, v_wind_W, params, d1, cp, fc, tc, k4)
+    if feet_clear(tmp[2], d1, cp):
+        _rigid_body_deriv(tmp, f_end, f_ext_W, v_wind_W, params, k4)
+    else:
+        _contact_deriv(tmp, f_end, f_ext_W, v_wind_W, params, d1, cp, fc, tc, k4)
 
     out = np.empty(NX)
     h6 = dt / 6.0
