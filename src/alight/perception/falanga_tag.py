@@ -249,9 +249,11 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # p
     x0 = np.empty(cap, np.int32)
     x1 = np.empty(cap, np.int32)
     parent = np.empty(cap, np.int32)
-    n = 0
-    prev_start = 0
-    prev_end = 0
+    # int64 zeros, not literal ones: typed as Literal[int](0) before the loop unifies them, they would
+    # make numba compile link_run and run_roots once more for that literal type
+    n = np.int64(0)
+    prev_start = np.int64(0)
+    prev_end = np.int64(0)
     for i in range(h):
         if (i % _TILE) == 0:
             trow = T[i // _TILE]
@@ -595,7 +597,7 @@ def _refine_quad(img, q, half, min_step):  # pragma: no cover - numba
         if nx * (0.5 * (ax + bx) - cxm) + ny * (0.5 * (ay + by) - cym) < 0:
             nx, ny = -nx, -ny
         m = int(min(16.0, max(4.0, length / 4.0)))
-        cnt = 0
+        cnt = np.int64(0)  # not a literal 0, which would make numba compile _fit_line for it too
         for i in range(m):
             s = 0.12 + 0.76 * i / (m - 1)
             ok, ex, ey = _edge1(img, ax + s * (bx - ax), ay + s * (by - ay), nx, ny, half, -1.0, min_step)
@@ -753,7 +755,8 @@ def _quad_stage(img, q_small, f, quad_xy, half, min_step):  # pragma: no cover
         qo[k, 0] = q[order[(k0 + k) % 4], 0]
         qo[k, 1] = q[order[(k0 + k) % 4], 1]
     q_ref, n_sides = _refine_quad(img, qo, half, min_step)
-    ok, H0 = homography_4pt(quad_xy, q_ref, 0, 1, 2, 3)
+    # int64 indices, not literals: homography_4pt then compiles once, for RANSAC's int64 indices too
+    ok, H0 = homography_4pt(quad_xy, q_ref, np.int64(0), np.int64(1), np.int64(2), np.int64(3))
     side = 0.0
     for k in range(4):
         side += np.hypot(q_ref[(k + 1) % 4, 0] - q_ref[k, 0], q_ref[(k + 1) % 4, 1] - q_ref[k, 1])

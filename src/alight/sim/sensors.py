@@ -490,7 +490,7 @@ def _true_range(
         o[0] += ax * origin_B[k]
         o[1] += ay * origin_B[k]
         o[2] += az * origin_B[k]
-    zx, zy, zz = _body_axis(q_WB, 2)
+    zx, zy, zz = _body_axis(q_WB, np.int64(2))  # an int64, not a literal 2: _body_axis compiles once
     d[0], d[1], d[2] = -zx, -zy, -zz
     return range_to_surface(o, d, p_WP, yaw, pad_size_m)
 
