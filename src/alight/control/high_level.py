@@ -363,7 +363,8 @@ def high_level_kernel(
     out[0] = thrust
     qd = np.empty(4)
     _rotmat_to_quat(R_des, qd)
-    out[4:8] = qd
+    for i in range(4):  # by element: numba compiles a slice assignment's error message (~1 s)
+        out[4 + i] = qd[i]
     return ok
 
 

@@ -399,7 +399,9 @@ def _solidity(row, x0, x1, root, cands, by0, by1):  # pragma: no cover - numba
         if a > 0 and k - 1 >= 4:
             qa, qc = _max_quad(hx[: k - 1], hy[: k - 1])
             quadness[c] = qa / a
-            corners[c] = qc
+            for r in range(4):  # by element: numba compiles a slice assignment's error message (~1 s)
+                corners[c, r, 0] = qc[r, 0]
+                corners[c, r, 1] = qc[r, 1]
     return sol, hull_area, quadness, corners
 
 
