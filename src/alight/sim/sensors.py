@@ -88,7 +88,7 @@ def _f64(a: FloatArray) -> FloatArray:
 
 
 @njit(cache=True)
-def _body_axis(q: FloatArray, k: int) -> tuple[float, float, float]:
+def _body_axis(q: FloatArray, k: int | np.int64) -> tuple[float, float, float]:
     """Column k of R_WB for the unit quaternion q = (x, y, z, w): the body axis k in W."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     if k == 0:
