@@ -2,12 +2,13 @@
 each preset's warm-up with an empty cache.
 
 Run: ``python benchmarks/numba_compile.py [SCENARIO] [--presets P,...]`` (default scenario
-``examples/circle.yaml``, the README's first command; prints JSON). Each measurement is a fresh Python
-process with ``NUMBA_CACHE_DIR`` pointing to a new, empty directory:
+``examples/alight_circle.yaml``, the one the README's first command flies; prints JSON). Each measurement
+is a fresh Python process with ``NUMBA_CACHE_DIR`` pointing to a new, empty directory:
 
 - ``cold``: the process flies the scenario once (``run_mission``, as ``alight fly --no-warmup`` does);
-  ``warm``: again with the cache the first one left.
-- ``presets``: for each preset (default all four), a process with its own empty cache flies the preset's
+  ``warm``: again with the cache the first one left. The README's first command compiles the same
+  signatures: its warm-up compiles them all, and the mission after it none.
+- ``presets``: for each preset (default all five), a process with its own empty cache flies the preset's
   warm-up (``alight.warmup.warm_up``, what ``alight fly`` and a campaign's sandbox run before any
   mission's clock starts): the cold compile of that preset.
 
@@ -67,12 +68,12 @@ def _child(what: str, arg: str, cache: str) -> dict[str, Any]:
 
 def main() -> None:
     args = sys.argv[1:]
-    presets = ["groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"]
+    presets = ["alight", "groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"]
     if "--presets" in args:
         i = args.index("--presets")
         presets = [p for p in args[i + 1].split(",") if p]
         del args[i : i + 2]
-    scenario = args[0] if args else str(Path(__file__).parents[1] / "examples" / "circle.yaml")
+    scenario = args[0] if args else str(Path(__file__).parents[1] / "examples" / "alight_circle.yaml")
     out: dict[str, Any] = {"scenario": scenario}
     with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
         for label in ("cold", "warm"):

@@ -215,7 +215,12 @@ def _flat_state(
             c = _frame_from_thrust_vector(f, yaw, R)
             if delta < _FP_TOL:
                 break
-    _rates_from_thrust_rate(R, c, j, yaw, yaw_rate, w)
+    # j copied to a writable array: the messages' j_ref is read-only, the fixed point below passes its
+    # own fdot, and numba would compile _rates_from_thrust_rate once for each
+    jw = np.empty(3)
+    for k in range(3):
+        jw[k] = j[k]
+    _rates_from_thrust_rate(R, c, jw, yaw, yaw_rate, w)
     if has_drag:
         vb = np.empty(3)
         ab = np.empty(3)
@@ -277,7 +282,12 @@ def high_level_kernel(
     R_des = np.empty((3, 3))
     f_ref = np.empty(3)
     w_ref = np.empty(3)
-    quat_to_R(q, R)
+    # q copied to a writable array: the messages' q is read-only, the ego filter's is not, and numba would
+    # compile quat_to_R once for each
+    qw = np.empty(4)
+    for k in range(4):
+        qw[k] = q[k]
+    quat_to_R(qw, R)
     d = params[HL_DRAG : HL_DRAG + 3]
 
     # Feed-forward: attitude, thrust vector and body rates of the reference (flatness, with drag).
@@ -363,7 +373,8 @@ def high_level_kernel(
     out[0] = thrust
     qd = np.empty(4)
     _rotmat_to_quat(R_des, qd)
-    out[4:8] = qd
+    for i in range(4):  # by element: numba compiles a slice assignment's error message (~1 s)
+        out[4 + i] = qd[i]
     return ok
 
 

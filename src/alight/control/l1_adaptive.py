@@ -200,7 +200,12 @@ def l1_kernel(
         return False
 
     R = np.empty((3, 3))
-    quat_to_R(q, R)
+    # q copied to a writable array: the messages' q is read-only, the ego filter's is not, and numba would
+    # compile quat_to_R once for each
+    qw = np.empty(4)
+    for k in range(4):
+        qw[k] = q[k]
+    quat_to_R(qw, R)
     # R D R^T v: the rotor drag of the known model (subtracted in u)
     dr0 = 0.0
     dr1 = 0.0

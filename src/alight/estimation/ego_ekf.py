@@ -398,7 +398,9 @@ def ego_predict_kernel(
         if h > 0.0:
             ego_error_jacobian(x, fm, wm, h, F)
             ego_step(x, fm, wm, h, params[4], xn)
-            x[:] = xn
+            # by element: numba compiles a slice assignment's error message (~1 s)
+            for i in range(x.shape[0]):
+                x[i] = xn[i]
             _propagate_cov(P, F, params, h, FP)
     for i in range(6):
         imu[i] = imu[6 + i]

@@ -239,7 +239,8 @@ def platform_propagate(
         unicycle_jacobian(xo, h, F)
         unicycle_process_noise(xo, h, q, Q)
         unicycle_step(xo, h, xt)
-        xo[:] = xt
+        for i in range(xo.shape[0]):  # by element: numba compiles a slice assignment's error message (~1 s)
+            xo[i] = xt[i]
         _mm(F, Po, FP)
         _mmt(FP, F, Po)
         for i in range(n):

@@ -154,8 +154,11 @@ def tick_batch(
             y, inputs, sim_params, ll_params, imu_bias, imu_noise[i], imu_scale, dt, n, contact_params,
             i * dt * n, counts,
         )  # fmt: skip
-        xs[i] = y
-        imus[i] = imu
+        # by element: numba compiles a slice assignment's error message (~1 s)
+        for k in range(y.shape[0]):
+            xs[i, k] = y[k]
+        for k in range(6):
+            imus[i, k] = imu[k]
         touch[i, 0] = counts[0]
         touch[i, 1] = counts[1]
         done += 1

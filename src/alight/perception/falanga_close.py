@@ -198,9 +198,11 @@ def _dark_runs(img, min_contrast, dark_frac):  # pragma: no cover - numba
     if p_hi - p_lo < min_contrast:
         return 0, row[:0], x0[:0], x1[:0], parent[:0], parent[:0], parent[:0]
     thr = p_lo + dark_frac * (p_hi - p_lo)  # dark: v < thr
-    n = 0
-    prev_s = 0
-    prev_e = 0
+    # int64 zeros, not literal ones: typed as Literal[int](0) before the loop unifies them, they would
+    # make numba compile link_run and run_roots once more for that literal type
+    n = np.int64(0)
+    prev_s = np.int64(0)
+    prev_e = np.int64(0)
     for i in range(h):
         r = img[i]
         cur_s = n

@@ -249,9 +249,11 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # p
     x0 = np.empty(cap, np.int32)
     x1 = np.empty(cap, np.int32)
     parent = np.empty(cap, np.int32)
-    n = 0
-    prev_start = 0
-    prev_end = 0
+    # int64 zeros, not literal ones: typed as Literal[int](0) before the loop unifies them, they would
+    # make numba compile link_run and run_roots once more for that literal type
+    n = np.int64(0)
+    prev_start = np.int64(0)
+    prev_end = np.int64(0)
     for i in range(h):
         if (i % _TILE) == 0:
             trow = T[i // _TILE]
@@ -397,7 +399,9 @@ def _solidity(row, x0, x1, root, cands, by0, by1):  # pragma: no cover - numba
         if a > 0 and k - 1 >= 4:
             qa, qc = _max_quad(hx[: k - 1], hy[: k - 1])
             quadness[c] = qa / a
-            corners[c] = qc
+            for r in range(4):  # by element: numba compiles a slice assignment's error message (~1 s)
+                corners[c, r, 0] = qc[r, 0]
+                corners[c, r, 1] = qc[r, 1]
     return sol, hull_area, quadness, corners
 
 
@@ -530,6 +534,25 @@ def _edge1(img, x, y, dx, dy, L, pol, min_step):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
+def _median_small(a, n):  # pragma: no cover - numba
+    """Median of ``a[:n]`` (n >= 1) as ``np.median`` gives it (the middle value, or the mean of the two
+    middle ones), by insertion sort of a copy: n is at most 16 here, and numba's ``np.median`` (a
+    quickselect) takes ~0.8 s to compile against ~0.1 s for this."""
+    s = np.empty(n)
+    for k in range(n):
+        v = a[k]
+        i = k
+        while i > 0 and v < s[i - 1]:
+            s[i] = s[i - 1]
+            i -= 1
+        s[i] = v
+    h = n >> 1
+    if n & 1 == 0:
+        return (s[h - 1] + s[h]) / 2
+    return s[h]
+
+
+@numba.njit(cache=True)
 def _fit_line(px, py, n):  # pragma: no cover - numba
     """Total-least-squares line through the first n points, refitted once without the points farther
     than max(0.75 px, 2.5 robust sigmas). Returns (ok, cx, cy, dx, dy)."""
@@ -564,7 +587,7 @@ def _fit_line(px, py, n):  # pragma: no cover - numba
         res = np.empty(n)
         for k in range(n):
             res[k] = abs(-(px[k] - cx) * dy + (py[k] - cy) * dx)
-        lim = max(0.75, 2.5 * 1.4826 * np.median(res))
+        lim = max(0.75, 2.5 * 1.4826 * _median_small(res, n))
         for k in range(n):
             keep[k] = res[k] <= lim
     return True, cx, cy, dx, dy
@@ -595,7 +618,7 @@ def _refine_quad(img, q, half, min_step):  # pragma: no cover - numba
         if nx * (0.5 * (ax + bx) - cxm) + ny * (0.5 * (ay + by) - cym) < 0:
             nx, ny = -nx, -ny
         m = int(min(16.0, max(4.0, length / 4.0)))
-        cnt = 0
+        cnt = np.int64(0)  # not a literal 0, which would make numba compile _fit_line for it too
         for i in range(m):
             s = 0.12 + 0.76 * i / (m - 1)
             ok, ex, ey = _edge1(img, ax + s * (bx - ax), ay + s * (by - ay), nx, ny, half, -1.0, min_step)
@@ -753,7 +776,8 @@ def _quad_stage(img, q_small, f, quad_xy, half, min_step):  # pragma: no cover
         qo[k, 0] = q[order[(k0 + k) % 4], 0]
         qo[k, 1] = q[order[(k0 + k) % 4], 1]
     q_ref, n_sides = _refine_quad(img, qo, half, min_step)
-    ok, H0 = homography_4pt(quad_xy, q_ref, 0, 1, 2, 3)
+    # int64 indices, not literals: homography_4pt then compiles once, for RANSAC's int64 indices too
+    ok, H0 = homography_4pt(quad_xy, q_ref, np.int64(0), np.int64(1), np.int64(2), np.int64(3))
     side = 0.0
     for k in range(4):
         side += np.hypot(q_ref[(k + 1) % 4, 0] - q_ref[k, 0], q_ref[(k + 1) % 4, 1] - q_ref[k, 1])

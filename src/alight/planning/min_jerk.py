@@ -424,6 +424,10 @@ def _states(x: ArrayLike, name: str, n: int | None = None) -> FloatArray:
         raise ValueError(f"{name} must have shape {want}, got {np.shape(x)}")
     if not np.isfinite(a).all():
         raise ValueError(f"{name} must be finite")
+    if not a.flags.writeable:
+        # a writable copy: numba compiles a kernel once per mix of read-only and writable arguments, and
+        # callers pass both (the guidance's frozen states, fresh arrays)
+        a = a.copy()
     return a
 
 

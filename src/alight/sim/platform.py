@@ -347,19 +347,29 @@ def _eval_lemniscate(s: float, seg: FloatArray, geo: FloatArray) -> tuple[float,
     return x, y, h + rot, kap
 
 
-@njit(cache=True)
-def _eval_path(s: float, seg: FloatArray, geo: FloatArray) -> tuple[float, float, float, float]:
-    """(x, y, heading, signed curvature) at arc length s."""
-    if geo[0] == _KIND_LEMNISCATE:
-        return _eval_lemniscate(s, seg, geo)
-    return _eval_arcs(s, seg, geo)
+# One kernel per kind of path, chosen in Python (Platform._eval, _eval_many): a kernel that branched on
+# the kind would compile the figure-8's elliptic integrals for every path, and the arcs' search for it.
 
 
 @njit(cache=True)
-def _eval_path_many(s: FloatArray, seg: FloatArray, geo: FloatArray) -> FloatArray:
+def _eval_arcs_many(s: FloatArray, seg: FloatArray, geo: FloatArray) -> FloatArray:
+    """(x, y, heading, signed curvature) at each arc length s (m), shape (N, 4): a path of arcs."""
     out = np.empty((s.shape[0], 4))
     for j in range(s.shape[0]):
-        x, y, h, k = _eval_path(s[j], seg, geo)
+        x, y, h, k = _eval_arcs(s[j], seg, geo)
+        out[j, 0] = x
+        out[j, 1] = y
+        out[j, 2] = h
+        out[j, 3] = k
+    return out
+
+
+@njit(cache=True)
+def _eval_lemniscate_many(s: FloatArray, seg: FloatArray, geo: FloatArray) -> FloatArray:
+    """(x, y, heading, signed curvature) at each arc length s (m), shape (N, 4): the figure-8."""
+    out = np.empty((s.shape[0], 4))
+    for j in range(s.shape[0]):
+        x, y, h, k = _eval_lemniscate(s[j], seg, geo)
         out[j, 0] = x
         out[j, 1] = y
         out[j, 2] = h
@@ -474,6 +484,9 @@ class Platform:
                 seg[k, 0] = _lemniscate_u(k * geo[10] / n_tab, a, 2 * math.pi * k / n_tab)
         self._seg = np.ascontiguousarray(seg)
         self._geo = geo
+        lemniscate = geo[0] == _KIND_LEMNISCATE
+        self._eval = _eval_lemniscate if lemniscate else _eval_arcs
+        self._eval_many = _eval_lemniscate_many if lemniscate else _eval_arcs_many
 
     @staticmethod
     def _random_table(
@@ -504,7 +517,7 @@ class Platform:
         if self.config.speed_profile is not None:
             return self.states(np.array([t])).at(0)
         v = self.config.speed_mps
-        x, y, h, k = _eval_path(v * t, self._seg, self._geo)
+        x, y, h, k = self._eval(v * t, self._seg, self._geo)
         c, s = math.cos(h), math.sin(h)
         ac = v * v * k
         return PlatformTruth(
@@ -532,7 +545,7 @@ class Platform:
     ) -> PlatformStates:
         # The states at arc lengths s_m (m) driven at speeds v (m/s) with tangential accelerations a_t
         # (m/s^2; None: a constant speed); the centripetal acceleration from the path's curvature.
-        g = _eval_path_many(s_m, self._seg, self._geo)
+        g = self._eval_many(s_m, self._seg, self._geo)
         n = t.shape[0]
         c, s = np.cos(g[:, 2]), np.sin(g[:, 2])
         ac = v * v * g[:, 3]
@@ -556,7 +569,7 @@ class Platform:
     def curvature(self, t: float) -> float:
         """Signed path curvature at time t (1/m), positive turning left."""
         s_m = float(self._along(np.array([float(t)]))[0][0])
-        return float(_eval_path(s_m, self._seg, self._geo)[3])
+        return float(self._eval(s_m, self._seg, self._geo)[3])
 
     def pad_corners_W(self, t: float) -> FloatArray:
         """Pad corners in W at time t (m), shape (4, 3), counter-clockwise from (+x, +y) of P."""

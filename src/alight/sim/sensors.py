@@ -88,7 +88,7 @@ def _f64(a: FloatArray) -> FloatArray:
 
 
 @njit(cache=True)
-def _body_axis(q: FloatArray, k: int) -> tuple[float, float, float]:
+def _body_axis(q: FloatArray, k: int | np.int64) -> tuple[float, float, float]:
     """Column k of R_WB for the unit quaternion q = (x, y, z, w): the body axis k in W."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     if k == 0:
@@ -490,7 +490,7 @@ def _true_range(
         o[0] += ax * origin_B[k]
         o[1] += ay * origin_B[k]
         o[2] += az * origin_B[k]
-    zx, zy, zz = _body_axis(q_WB, 2)
+    zx, zy, zz = _body_axis(q_WB, np.int64(2))  # an int64, not a literal 2: _body_axis compiles once
     d[0], d[1], d[2] = -zx, -zy, -zz
     return range_to_surface(o, d, p_WP, yaw, pad_size_m)
 
