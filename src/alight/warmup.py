@@ -13,9 +13,9 @@ are thrown away; it changes no state that a later mission sees (every mission bu
 pipeline from its scenario).
 
 Every ``@njit`` in alight has ``cache=True``, so the compile happens once per install: later processes
-load the machine code from numba's cache (milliseconds per kernel). Where the cache goes is numba's
-choice: ``NUMBA_CACHE_DIR`` when set, else ``__pycache__`` beside the source when it is writable, else the
-user-wide cache directory (``~/.cache/numba`` on Linux), so a read-only site-packages install caches too.
+load the machine code from numba's cache (milliseconds per kernel). The cache directory is keyed by the
+whole package's source (:mod:`alight.numba_cache`): numba by itself keeps a kernel's code after a change
+to a kernel it calls from another file, so any change of alight's source starts a fresh cache.
 """
 
 from __future__ import annotations
