@@ -44,7 +44,9 @@ ALLOWED: dict[str, set[str]] = {
     "cli": _MODELS
     | _STAGES
     | {"sim", "scenario", "evaluation", "campaign", "interfaces", "warmup", "__init__"},
-    "__init__": set(),
+    # the package's import points numba's cache at a directory keyed by the source, before any kernel
+    "__init__": {"numba_cache"},
+    "numba_cache": set(),
 }
 
 
