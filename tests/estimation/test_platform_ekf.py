@@ -15,11 +15,11 @@ from alight.errors import EstimationError
 from alight.estimation.platform_ekf import (
     I_THETA,
     I_V,
-    TURN_JERK_CORNER_SPEED_MPS,
     PlatformEkf,
     PlatformEkfConfig,
     fit_constant_velocity,
     platform_residual,
+    turn_jerk_density,
     unicycle_from_fit,
     unicycle_jacobian,
     unicycle_process_noise,
@@ -131,6 +131,15 @@ def test_process_noise_is_the_integral_of_the_linearised_model(n: int) -> None:
 
 @pytest.mark.parametrize("v_t", [0.0, 0.3, 3.0, 12.0])
 def test_lateral_jerk_noise_is_a_turn_noise_divided_by_the_speed(v_t: float) -> None:
+    # the density by hand: 0 at rest, ~j / v between the corners (3 m/s: 1.5 * 3 / 13 * 36 / 45), and
+    # falling as j v_f^2 / v^3 when fast (12 m/s: 1.5 * 12 / 148 * 36 / 180)
+    by_hand = {
+        0.0: 0.0,
+        0.3: 1.5 * 0.3 / 4.09 * 36 / 36.09,
+        3.0: 1.5 * 3 / 13 * 36 / 45,
+        12.0: 1.5 * 12 / 148 * 0.2,
+    }
+    assert turn_jerk_density(1.5, v_t) == pytest.approx(by_hand[v_t], rel=1e-12, abs=1e-15)
     """A lateral-jerk density j acts as a turn-acceleration density j / v_t on top of the fixed one
     (variances add), with v_t floored at TURN_JERK_CORNER_SPEED_MPS; the jerk slot at 0 changes nothing."""
     x = np.array([1.0, -2.0, 0.3, 0.7, v_t, 0.2])
@@ -139,7 +148,7 @@ def test_lateral_jerk_noise_is_a_turn_noise_divided_by_the_speed(v_t: float) -> 
     with_jerk, Q = np.empty((6, 6)), np.empty((6, 6))
     unicycle_process_noise(x, 0.05, np.append(base, j), with_jerk)
     equivalent = base.copy()
-    equivalent[2] = math.hypot(base[2], j * v_t / (v_t**2 + TURN_JERK_CORNER_SPEED_MPS**2))
+    equivalent[2] = math.hypot(base[2], turn_jerk_density(j, v_t))
     unicycle_process_noise(x, 0.05, equivalent, Q)
     assert np.allclose(with_jerk, Q, rtol=1e-12, atol=0.0)
     unicycle_process_noise(x, 0.05, np.append(base, 0.0), with_jerk)

@@ -84,10 +84,27 @@ I_PX, I_PY, I_PZ, I_THETA, I_V, I_OMEGA = 0, 1, 2, 3, 4, 5
 
 
 TURN_JERK_CORNER_SPEED_MPS = 2.0
-"""Speed (m/s) below which ``turn_jerk_noise`` fades: the turn-acceleration density it adds is
-``j v / (v^2 + v_c^2)``, the lateral jerk's ``j / v`` well above ``v_c`` and a curvature rate's
-``(j / v_c^2) v`` well below (a vehicle at rest does not turn; with ``j / max(v, 1 m/s)`` the turn rate
-of a platform standing for 3 s wandered by several rad/s, and the estimate curled when it drove on)."""
+"""Speed (m/s) below which ``turn_jerk_noise`` fades (see :func:`turn_jerk_density`): a vehicle at rest
+does not turn (with ``j / max(v, 1 m/s)`` the turn rate of a platform standing for 3 s wandered by several
+rad/s, and the estimate curled when it drove on)."""
+TURN_JERK_FADE_SPEED_MPS = 6.0
+"""Speed (m/s) above which ``turn_jerk_noise`` fades faster than ``j / v`` (see :func:`turn_jerk_density`):
+with ``j / v`` alone the turn rate of a 14 m/s platform followed each GNSS fix (10 Hz, 0.5 m) before the
+camera saw the pad, the vehicle tracked a wandering prediction and found the pad 6 s later (Matrice 100 at
+14 m/s, alight_speed.yaml: 15/20 -> 3/20 landed)."""
+
+
+@njit(cache=True)
+def turn_jerk_density(j: float, v: float) -> float:
+    """The turn-acceleration density (rad/s^2/sqrt(Hz)) that a lateral-jerk density ``j`` (m/s^3/sqrt(Hz))
+    adds at speed ``v`` (m/s): ``j v / (v^2 + v_c^2) * v_f^2 / (v^2 + v_f^2)``. Between the corner
+    ``v_c`` (2 m/s) and ``v_f`` (6 m/s) it is about the lateral jerk's ``j / v`` (a vehicle whose side
+    force is limited changes its turn rate the slower the faster it goes); it fades to 0 at rest and as
+    ``j v_f^2 / v^3`` when fast, where the heading is well determined by the motion and the turn noise
+    would only make it follow the fixes' noise."""
+    v2 = v * v
+    vf2 = TURN_JERK_FADE_SPEED_MPS * TURN_JERK_FADE_SPEED_MPS
+    return j * abs(v) / (v2 + TURN_JERK_CORNER_SPEED_MPS * TURN_JERK_CORNER_SPEED_MPS) * vf2 / (v2 + vf2)
 
 
 @njit(cache=True)
@@ -168,10 +185,10 @@ def unicycle_process_noise(x: FloatArray, dt: float, q: FloatArray, Q: FloatArra
     tangential acceleration (m/s^2/sqrt(Hz)), heading rate (rad/s/sqrt(Hz)), turn acceleration
     (rad/s^2/sqrt(Hz), only with ``omega``), horizontal and vertical position random walks
     (m/s/sqrt(Hz)), lateral jerk (m/s^3/sqrt(Hz), only with ``omega``: it adds
-    ``(q[5] v_t / (v_t^2 + TURN_JERK_CORNER_SPEED_MPS^2))^2`` to the turn acceleration's variance; a
-    5-element ``q`` has none). Exact integrals for the model linearised about straight motion at the
-    mid-step heading (an impulse on ``d(v_t)/dt`` at lag ``u`` before the end moves p by ``u`` along the
-    heading, one on ``d(theta)/dt`` by ``v_t u`` across it, one on ``d(omega)/dt`` by ``v_t u^2 / 2``)."""
+    ``turn_jerk_density(q[5], v_t)^2`` to the turn acceleration's variance; a 5-element ``q`` has none).
+    Exact integrals for the model linearised about straight motion at the mid-step heading (an impulse
+    on ``d(v_t)/dt`` at lag ``u`` before the end moves p by ``u`` along the heading, one on
+    ``d(theta)/dt`` by ``v_t u`` across it, one on ``d(omega)/dt`` by ``v_t u^2 / 2``)."""
     n = x.shape[0]
     h = abs(dt)
     v = x[I_V]
@@ -185,7 +202,7 @@ def unicycle_process_noise(x: FloatArray, dt: float, q: FloatArray, Q: FloatArra
     sh2 = q[1] * q[1]
     sw2 = q[2] * q[2] if n == 6 else 0.0
     if n == 6 and q.shape[0] > 5 and q[5] > 0.0:
-        sw2 += (q[5] * v / (v * v + TURN_JERK_CORNER_SPEED_MPS**2)) ** 2
+        sw2 += turn_jerk_density(q[5], v) ** 2
     h2 = h * h
     h3 = h2 * h
     # along-track (e) and cross-track (nn) position variances
@@ -499,9 +516,9 @@ class PlatformEkfConfig:
     """Noise on d(omega)/dt (rad/s^2/sqrt(Hz)), used with ``use_turn_rate``."""
     turn_jerk_noise: float = 0.0
     """Noise on the rate of the lateral acceleration ``v_t omega`` (m/s^3/sqrt(Hz)), used with
-    ``use_turn_rate``: it adds ``turn_jerk_noise / v_t`` to the turn acceleration noise (fading below
-    ``TURN_JERK_CORNER_SPEED_MPS``), so that a slow vehicle may change its turn rate quickly and a fast
-    one only slowly, as a vehicle whose side force is limited does. 0: off (the fixed
+    ``use_turn_rate``: it adds about ``turn_jerk_noise / v_t`` to the turn acceleration noise (fading at
+    rest and above ~6 m/s, :func:`turn_jerk_density`), so that a slow vehicle may change its turn rate
+    quickly and a fast one only slowly, as a vehicle whose side force is limited does. 0: off (the fixed
     ``turn_accel_noise``). A tractor entering or leaving its U-turn steps omega by 0.75 rad/s; with 0.1
     rad/s^2/sqrt(Hz) the estimate took 2-3 s to follow, its heading 10-20 deg off meanwhile, while 2.0
     at every speed made the 12 m/s estimate chase each PnP fix."""
