@@ -556,17 +556,25 @@ def _brake_stop_track(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ts, np.stack([x, np.zeros_like(x), np.full_like(x, 0.5)], axis=1), speed
 
 
-def _track(cfg: PlatformEkfConfig, seed: int) -> tuple[PlatformEkf, np.ndarray, np.ndarray]:
-    ts, p_true, speed = _brake_stop_track(seed)
+def _filtered(
+    cfg: PlatformEkfConfig, seed: int, ts: np.ndarray, p_true: np.ndarray
+) -> tuple[PlatformEkf, np.ndarray]:
+    """The filter fed 5 cm fixes of ``p_true`` at ``ts``, and its state after each (NaN before it starts)."""
     rng = np.random.default_rng(seed)
     ekf = PlatformEkf(cfg)
-    est = np.full(ts.size, np.nan)
+    states = np.full((ts.size, cfg.state_dim), np.nan)
     for k, t in enumerate(ts):
         ekf.predict(t)
         ekf.update(meas(t, p_true[k] + rng.normal(0.0, 0.05, 3)))
         if ekf.initialized:
-            est[k] = ekf.x[I_V]
-    return ekf, est, speed
+            states[k] = ekf.x
+    return ekf, states
+
+
+def _track(cfg: PlatformEkfConfig, seed: int) -> tuple[PlatformEkf, np.ndarray, np.ndarray]:
+    ts, p_true, speed = _brake_stop_track(seed)
+    ekf, states = _filtered(cfg, seed, ts, p_true)
+    return ekf, states[:, I_V], speed
 
 
 def test_a_braking_platform_is_followed_with_the_manoeuvre_noise_level() -> None:
@@ -657,15 +665,8 @@ def _u_turn_track(v: float = 3.0, r: float = 4.0, t_turn: float = 5.0):  # type:
 
 
 def _heading_errors(cfg: PlatformEkfConfig, seed: int, ts, p, heading) -> np.ndarray:  # type: ignore[no-untyped-def]
-    rng = np.random.default_rng(seed)
-    ekf = PlatformEkf(cfg)
-    err = np.full(ts.size, np.nan)
-    for k, t in enumerate(ts):
-        ekf.predict(t)
-        ekf.update(meas(t, p[k] + rng.normal(0.0, 0.05, 3)))
-        if ekf.initialized:
-            err[k] = wrap_angle(ekf.x[I_THETA] - heading[k])
-    return err
+    _, states = _filtered(cfg, seed, ts, p)
+    return np.array([wrap_angle(d) if np.isfinite(d) else np.nan for d in states[:, I_THETA] - heading])
 
 
 def test_lateral_jerk_noise_follows_a_u_turn_and_fades_on_a_fast_straight_line() -> None:
