@@ -553,6 +553,14 @@ class MissionSpec(_Strict):
     land_steady_tilt_max_rad: float | None = Field(default=None, gt=0.0, lt=1.5, allow_inf_nan=False)
     """With ``land_commit_max_tilt_rad``: a lean above this (rad) holds the commit even when steady (the
     gear would touch the deck leaning that far). None: the preset's (``alight``: 0.42), else no limit."""
+    land_touchdown_max_tilt_rad: float | None = Field(default=None, gt=0.0, lt=1.5, allow_inf_nan=False)
+    """Limit the commanded tilt to this (rad) in a committed descent once the range finder reads less
+    than ``land_touchdown_clearance_m`` from the feet (PX4's ``MPC_TILTMAX_LND``): the gear meets the
+    deck level enough, and the vehicle drifts with a gust for the last fraction of a second. None: the
+    preset's (``alight``: 0.38), else no limit."""
+    land_touchdown_clearance_m: PositiveFloat | None = None
+    """The range from the feet (m) below which ``land_touchdown_max_tilt_rad`` applies. None: the
+    preset's, else 0.1 m."""
     land_commit_max_platform_accel_mps2: PositiveFloat | None = None
     """Hold the descent at the commit height while the platform estimate's horizontal acceleration (a
     turn's centripetal ``v omega``) is above this (m/s^2), for at most 20 s, then go around: the last

@@ -206,7 +206,7 @@ class Pipeline:
             detector.will_process if isinstance(detector, FrameGate) else None
         )
         self._z_takeoff: float | None = None  # the estimated height where the take-off started (m)
-        self._tilt_limited = False
+        self._tilt_limit: float | None = None  # the tilt limit set on the controller now (rad)
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
         self.range_m: float | None = None
@@ -458,7 +458,7 @@ class Pipeline:
         t0 = self.stats.charge("guidance", t0)
         self.last_reference = ref
         if self._set_tilt_limit is not None:
-            self._limit_takeoff_tilt(mode, ego)
+            self._limit_tilt_near_ground(mode, ego)
         cmd = self.controller.command(ego, ref)
         self.stats.charge("controller", t0)
         self.touchdown.observe_attitude(t, ego.q_WB)
@@ -466,21 +466,34 @@ class Pipeline:
             cmd = self._touchdown_step(t, ego, target, cmd)
         return cmd
 
-    def _limit_takeoff_tilt(self, mode: Mode, ego: EgoState) -> None:
+    def _limit_tilt_near_ground(self, mode: Mode, ego: EgoState) -> None:
         """Near the ground during the take-off, the tilt is limited (``mission.takeoff_clearance_m``,
         ``takeoff_max_tilt_rad``): a vehicle that leans into a wind or toward its climb's goal with its
         feet a few centimetres up puts a foot on the ground and tips. PX4 limits the tilt during its
-        take-off ramp for the same reason. The vehicle drifts with the wind until clear, then corrects."""
+        take-off ramp for the same reason. The vehicle drifts with the wind until clear, then corrects.
+
+        In a committed descent with the range finder reading less than ``land_touchdown_clearance_m``
+        from the feet, the tilt is limited to ``land_touchdown_max_tilt_rad`` when set (PX4's
+        ``MPC_TILTMAX_LND`` does it for its landings): the feet meet the deck level enough for the gear,
+        and the vehicle drifts with a gust for the last fraction of a second instead of leaning into it."""
         cfg = self.mission.config
-        low = (
+        limit: float | None = None
+        if (
             mode is Mode.TAKEOFF
             and self._z_takeoff is not None
             and float(ego.p_WB[2]) - self._z_takeoff < cfg.takeoff_clearance_m
-        )
-        if low is not self._tilt_limited:
+        ):
+            limit = cfg.takeoff_max_tilt_rad
+        elif mode is Mode.LAND and cfg.land_touchdown_max_tilt_rad is not None and self.mission.committed:
+            r = self.range_raw_m
+            if r is not None and (
+                r == -math.inf or (math.isfinite(r) and r < cfg.land_touchdown_clearance_m)
+            ):
+                limit = cfg.land_touchdown_max_tilt_rad
+        if limit != self._tilt_limit:
             assert self._set_tilt_limit is not None
-            self._set_tilt_limit(cfg.takeoff_max_tilt_rad if low else None)
-            self._tilt_limited = low
+            self._set_tilt_limit(limit)
+            self._tilt_limit = limit
 
     def _detector_armed(self) -> bool:
         """The land detector runs during a descent: the landing, and a final action's descent."""

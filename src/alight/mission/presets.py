@@ -116,6 +116,8 @@ _MISSION_OPTIONAL = (
     "land_commit_max_tilt_rad",
     "land_tilt_min_spread_rad",
     "land_steady_tilt_max_rad",
+    "land_touchdown_max_tilt_rad",
+    "land_touchdown_clearance_m",
     "land_commit_max_platform_accel_mps2",
     "land_commit_ground_margin_m",
     "final_action",

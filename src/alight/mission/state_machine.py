@@ -75,6 +75,14 @@ class MissionConfig:
     reaches 0.14 m down at 45 deg)."""
     takeoff_max_tilt_rad: float = math.radians(12.0)
     """The take-off's tilt limit near the ground (rad); 12 deg is PX4's ``MPC_TILTMAX_LND``."""
+    land_touchdown_max_tilt_rad: float | None = None
+    """In a committed descent, with the range finder reading less than ``land_touchdown_clearance_m``
+    from the feet, the commanded tilt is limited to this (rad), as PX4's ``MPC_TILTMAX_LND`` limits it
+    in its landings: the feet meet the deck no more tilted than the gear tolerates, and the vehicle drifts
+    with a gust for that last fraction of a second instead of leaning into it. None: no limit (the
+    papers' descent)."""
+    land_touchdown_clearance_m: float = 0.1
+    """The range from the feet (m) below which ``land_touchdown_max_tilt_rad`` applies."""
     land_position_tolerance_m: float = 0.25
     """Descent gate, horizontal offset to the pad: the landing starts below this (m) ..."""
     land_velocity_tolerance_mps: float = 0.3
@@ -197,6 +205,8 @@ class MissionConfig:
             "land_hold_rel_speed_mps",
             "takeoff_clearance_m",
             "takeoff_max_tilt_rad",
+            "land_touchdown_max_tilt_rad",
+            "land_touchdown_clearance_m",
             "land_abort_offset_m",
             "land_abort_rel_speed_mps",
             "land_abort_position_std_m",
@@ -223,6 +233,7 @@ class MissionConfig:
                 "land_commit_max_tilt_rad",
                 "land_commit_max_platform_accel_mps2",
                 "land_steady_tilt_max_rad",
+                "land_touchdown_max_tilt_rad",
             ):
                 continue
             if not (math.isfinite(value) and value > 0):
@@ -237,6 +248,9 @@ class MissionConfig:
             raise ValueError(
                 f"mission.land_commit_max_tilt_rad must be < pi/2, got {self.land_commit_max_tilt_rad:g}"
             )
+        touchdown_tilt = self.land_touchdown_max_tilt_rad
+        if touchdown_tilt is not None and touchdown_tilt >= math.pi / 2:
+            raise ValueError(f"mission.land_touchdown_max_tilt_rad must be < pi/2, got {touchdown_tilt:g}")
         if self.takeoff_max_tilt_rad >= math.pi / 2:
             raise ValueError(
                 f"mission.takeoff_max_tilt_rad must be < pi/2, got {self.takeoff_max_tilt_rad:g}"
