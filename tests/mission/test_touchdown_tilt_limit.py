@@ -57,5 +57,7 @@ def test_the_touchdown_tilt_keys_act_on_every_preset(preset: str) -> None:
     assert (cfg.land_touchdown_max_tilt_rad, cfg.land_touchdown_clearance_m) == (0.3, 0.15)
     assert isinstance(p.controller, TiltLimited)  # so the limit reaches the vehicle
     assert _limits_after(p, True, [0.1]) == [0.3]
+    default = _pipeline(preset).mission.config.land_touchdown_max_tilt_rad
+    assert default == (0.38 if preset == "alight" else None)  # the papers' descents lean as they need
     with pytest.raises(ValueError, match="land_touchdown_max_tilt_rad"):
         MissionConfig(land_touchdown_max_tilt_rad=1.6)
