@@ -147,13 +147,22 @@ def _rigid_body_deriv(
         tau_y -= par[PAR_ROTOR_X + i] * f[i]
         tau_z -= par[PAR_SPIN + i] * c_tau * f[i]
 
-    # rotor drag: -m R diag(d) R^T v_air
+    # rotor drag: -m R diag(d) R^T v_air, scaled by the rotors' speed relative to hover (the sum of the
+    # rotor speeds in Faessler et al.'s model; a rotor's speed goes as the root of its thrust): stopped
+    # rotors have no drag
+    hover = 0.25 * m * par[PAR_G]
+    spin = 0.25 * (
+        math.sqrt(max(f[0], 0.0) / hover)
+        + math.sqrt(max(f[1], 0.0) / hover)
+        + math.sqrt(max(f[2], 0.0) / hover)
+        + math.sqrt(max(f[3], 0.0) / hover)
+    )
     vax = y[3] - v_wind_W[0]
     vay = y[4] - v_wind_W[1]
     vaz = y[5] - v_wind_W[2]
-    bx = par[PAR_DRAG] * (r00 * vax + r10 * vay + r20 * vaz)
-    by = par[PAR_DRAG + 1] * (r01 * vax + r11 * vay + r21 * vaz)
-    bz = par[PAR_DRAG + 2] * (r02 * vax + r12 * vay + r22 * vaz)
+    bx = spin * par[PAR_DRAG] * (r00 * vax + r10 * vay + r20 * vaz)
+    by = spin * par[PAR_DRAG + 1] * (r01 * vax + r11 * vay + r21 * vaz)
+    bz = spin * par[PAR_DRAG + 2] * (r02 * vax + r12 * vay + r22 * vaz)
 
     out[0] = y[3]
     out[1] = y[4]
