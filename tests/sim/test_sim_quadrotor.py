@@ -60,14 +60,40 @@ def test_free_fall_without_drag_is_parabolic():
     np.testing.assert_allclose(x[Q.SL_Q], x0[Q.SL_Q], atol=1e-12)
 
 
-def test_free_fall_with_linear_rotor_drag_matches_closed_form():
-    # level body: m v' = -m g - m d_z v  =>  v(t) = -(g / d)(1 - exp(-d t))
-    d = DEFAULT_AIRFRAME.rotor_drag[2]
+def test_stopped_rotors_have_no_rotor_drag():
+    # the drag follows the rotors' speed (Faessler et al.'s sum over the rotors): a free fall with the
+    # rotors stopped is parabolic whatever the airframe's rotor drag
     par = Q.pack_params()
-    x = Q.step_many(_state((0.0, 0.0, 50.0)), np.zeros(4), Z3, Z3, par, 0.001, 2000)
-    t, g = 2.0, GRAVITY_MPS2
-    assert x[5] == pytest.approx(-(g / d) * (1 - math.exp(-d * t)), abs=1e-10)
-    assert x[2] == pytest.approx(50.0 - (g / d) * (t - (1 - math.exp(-d * t)) / d), abs=1e-10)
+    x = Q.step_many(_state((0.0, 0.0, 50.0), v=(3.0, 0.0, 0.0)), np.zeros(4), Z3, Z3, par, 0.001, 1000)
+    assert x[5] == pytest.approx(-GRAVITY_MPS2, abs=1e-9)
+    assert x[3] == pytest.approx(3.0, abs=1e-12)
+
+
+def test_linear_rotor_drag_at_hover_thrust_matches_closed_form():
+    # level body holding its weight, moving along x: m v' = -m d_x v  =>  v(t) = v0 exp(-d t)
+    d = DEFAULT_AIRFRAME.rotor_drag[0]
+    par = Q.pack_params()
+    f_hover = DEFAULT_AIRFRAME.weight_N / 4
+    x0 = _state((0.0, 0.0, 50.0), thrust=f_hover, v=(2.0, 0.0, 0.0))
+    x = Q.step_many(x0, np.full(4, f_hover), Z3, Z3, par, 0.001, 2000)
+    t = 2.0
+    assert x[3] == pytest.approx(2.0 * math.exp(-d * t), abs=1e-10)
+    assert x[0] == pytest.approx(2.0 * (1 - math.exp(-d * t)) / d, abs=1e-10)
+    assert x[5] == pytest.approx(0.0, abs=1e-10)
+
+
+def test_rotor_drag_follows_the_rotor_speed():
+    # rotor speed goes as the root of the thrust: at 4x the hover thrust (every rotor) the drag doubles,
+    # with one rotor stopped and three at hover it is 3/4 of the hover drag
+    par = Q.pack_params()
+    f_hover = DEFAULT_AIRFRAME.weight_N / 4
+    d = DEFAULT_AIRFRAME.rotor_drag[0]
+    for thrusts, scale in (((4.0,) * 4, 2.0), ((0.0, 1.0, 1.0, 1.0), 0.75), ((1.0,) * 4, 1.0)):
+        f = f_hover * np.array(thrusts)
+        x = _state(v=(1.0, 0.0, 0.0))
+        x[Q.SL_F] = f
+        a = Q.derivatives(x, f, Z3, Z3, par)[Q.SL_V]
+        assert a[0] == pytest.approx(-scale * d, abs=1e-12), thrusts
 
 
 def test_rotor_drag_acts_on_air_relative_velocity():

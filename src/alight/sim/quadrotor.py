@@ -11,8 +11,10 @@ The equations (W is ENU z-up, B is FLU, ``R = R_WB``)::
 with ``tau = (sum y_i f_i, -sum x_i f_i, -sum spin_i c_tau f_i)`` (the rows of
 :attr:`alight.airframe.Airframe.allocation`), ``clip`` the saturation to ``[f_min, f_max]`` per rotor.
 The rotor drag is the linear, mass-normalised model of Faessler, Franchi and Scaramuzza (RA-L 2018,
-eq. 2 with the thrust dependence folded into ``d``); ``v_wind_W`` is the air's velocity (zero when the
-wind is modelled as a force, as the SDU gust model does).
+eq. 2): proportional to the sum of the rotor speeds, here ``d`` (the airframe's, at hover) times the mean
+of ``sqrt(f_i / f_hover)`` (a rotor's speed goes as the root of its thrust), so stopped rotors drag
+nothing (a vehicle standing on a deck in the wind with its motors off); ``v_wind_W`` is the air's
+velocity (zero when the wind is modelled as a force, as the SDU gust model does).
 
 Everything numeric is a ``@njit`` function of plain arrays so that the evaluation runner can fuse
 :func:`step` with a rate controller in one compiled loop. The state and parameter layouts are module
