@@ -120,27 +120,25 @@ def test_tilt_limit_keeps_the_vertical_part() -> None:
     assert cmd.thrust_N == pytest.approx(AF.weight_N, rel=1e-12)  # level vehicle: the vertical part only
 
 
-def test_no_feed_forward_rates_while_the_thrust_vector_is_clipped() -> None:
+def test_no_feed_forward_rates_while_the_vertical_thrust_is_at_its_floor() -> None:
     """A reference in near free fall with a sideways jerk: its own attitude turns at |j| / c, 40 rad/s at
-    c = 0.1 m/s^2. The vertical floor clips the thrust vector, the commanded attitude is level (the
+    c = 0.1 m/s^2. The vertical floor holds the thrust vector up, the commanded attitude is level (the
     vehicle is level and on the reference), so the command is the feedback alone: zero rates. The same
-    jerk on a hover reference, not clipped, is fed forward in full."""
+    jerk on a hover reference is fed forward in full, and so it is when only the tilt cone clips."""
     ctl = HighLevelController(AF)
-    a_free = (0.0, 0.0, -G + 0.1)
-    cmd = ctl.command(_ego(), _ref(a=a_free, j=(4.0, 0.0, 0.0)))
+    j = np.array([0.0, 4.0, 0.0])
+    cmd = ctl.command(_ego(), _ref(a=(0.0, 0.0, -G + 0.1), j=j))
     np.testing.assert_allclose(cmd.w_WB_B_cmd, 0.0, atol=1e-12)
     assert cmd.thrust_N == pytest.approx(AF.mass * HighLevelGains().min_vertical_accel, rel=1e-12)
-    # with the tilt cone clipping (20 m off the reference sideways) the jerk changes nothing either
-    far_jerk = ctl.command(_ego(), _ref(p=(20.0, 0.0, 0.0), j=(0.0, 4.0, 0.0))).w_WB_B_cmd
-    far = ctl.command(_ego(), _ref(p=(20.0, 0.0, 0.0))).w_WB_B_cmd
-    np.testing.assert_allclose(far_jerk, far, atol=1e-12)
-    # not clipped: the same jerk is fed forward exactly
-    cmd = ctl.command(_ego(), _ref(j=(0.0, 4.0, 0.0)))
-    w = body_rates_from_jerk(
-        np.zeros(3), np.array([0.0, 4.0, 0.0]), 0.0, 0.0, v_W=np.zeros(3), rotor_drag=AF.rotor_drag
-    )
+    # not clipped: the jerk is fed forward exactly
+    cmd = ctl.command(_ego(), _ref(j=j))
+    w = body_rates_from_jerk(np.zeros(3), j, 0.0, 0.0, v_W=np.zeros(3), rotor_drag=AF.rotor_drag)
     np.testing.assert_allclose(cmd.w_WB_B_cmd, w, atol=1e-12)
-    assert abs(w[0]) > 0.3  # the jerk is fed forward when nothing is clipped
+    assert abs(w[0]) > 0.3
+    # the tilt cone clipping (20 m off the reference sideways): the jerk still adds its rates
+    far_jerk = ctl.command(_ego(), _ref(p=(20.0, 0.0, 0.0), j=j)).w_WB_B_cmd
+    far = ctl.command(_ego(), _ref(p=(20.0, 0.0, 0.0))).w_WB_B_cmd
+    np.testing.assert_allclose(far_jerk - far, w, atol=1e-12)
 
 
 def test_thrust_limits() -> None:

@@ -13,10 +13,10 @@ mixing, saturation, and body-rate control for accurate aggressive quadrotor flig
 3. tilt limit on ``f_des`` (its vertical part has priority), desired attitude from ``f_des`` and the
    reference yaw, collective thrust ``c = f_des . z_B`` projected on the CURRENT body z axis;
 4. body rates = feed-forward rates of the reference (from the jerk and the yaw rate; dropped while
-   step 3 clips the thrust vector, since the commanded attitude is then not the reference's) + a
-   tilt-prioritised attitude-error feedback (Faessler 2017: the error quaternion is split into a tilt
-   part, which the thrust direction and thus the position depend on, and a yaw part, which has the
-   least authority).
+   step 3 holds the vertical part at its floor, where the reference is near free fall and its rates
+   blow up) + a tilt-prioritised attitude-error feedback (Faessler 2017: the error quaternion is split
+   into a tilt part, which the thrust direction and thus the position depend on, and a yaw part, which
+   has the least authority).
 
 Yaw parametrisation. The attitude is built as in Faessler 2018 (x_B from y_C): with ``y_C = (-sin psi,
 cos psi, 0)``, ``x_B = y_C x z_B / |y_C x z_B|``, ``y_B = z_B x x_B``. Then ``x_B`` lies in the vertical
@@ -308,9 +308,11 @@ def high_level_kernel(
     saturated = False
     fz_min = params[HL_FZ_MIN]
     c_max = params[HL_C_MAX]
+    floored = False
     if f[2] < fz_min:
         f[2] = fz_min
         saturated = True
+        floored = True
     elif f[2] > c_max:
         f[2] = c_max
         saturated = True
@@ -361,11 +363,14 @@ def high_level_kernel(
     wW2 = R_ref[2, 0] * w_ref[0] + R_ref[2, 1] * w_ref[1] + R_ref[2, 2] * w_ref[2]
     lim = params[HL_RATE_LIM]
     ok = math.isfinite(c_cmd)  # before the clamps, which could hide a NaN
-    # The feed-forward rates are the rates of the reference's attitude. When step 3 clipped the thrust
-    # vector, the commanded attitude is not the reference's and need not turn with it: feeding its rates
-    # then turns the vehicle away from the attitude it is told to hold. Worst where the reference asks for
-    # nearly free fall, since those rates go as the jerk over a small reference thrust.
-    ff = 0.0 if saturated else 1.0
+    # The feed-forward rates are the rates of the reference's attitude, |j_perp| / c_ref. When step 3 had
+    # to raise the vertical part to its floor, the reference asks for nearly free fall: c_ref is small,
+    # its rates are huge, and the commanded attitude (held up by the floor) does not turn with them.
+    # Feeding them then tips the vehicle over (a Matrice 100 in 12 m/s wind, descending from a climb's
+    # overshoot: 65 deg of tilt, then a flip). A tilt-cone clip keeps them: the clipped attitude still
+    # turns with the reference's horizontal thrust, and dropping them there slowed a take-off's chase
+    # of a 6 m/s platform (the pad seen 0.3 s later on 5 of 20 brake seeds).
+    ff = 0.0 if floored else 1.0
     for k in range(3):
         wff = ff * (R[0, k] * wW0 + R[1, k] * wW1 + R[2, k] * wW2)
         if k == 0:
