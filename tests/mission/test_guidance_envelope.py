@@ -106,3 +106,80 @@ def test_without_intercept_the_fixed_horizon_finds_nothing_far_away() -> None:
     g2.update(0.0, Mode.TRACK, _ego(0.0, hover), est.state(0.0), est, hover)  # type: ignore[arg-type]
     assert g2._plan is not None  # a longer horizon (or the clipped longest candidate) is flown
     assert g2.plans_extended + g2.plans_clipped == 1
+
+
+def _estimate(
+    t: float, p: tuple[float, float], v: tuple[float, float], std: float, t_meas: float
+) -> PlatformEstimate:
+    return PlatformEstimate(
+        t,
+        np.array([p[0], p[1], 0.5]),
+        np.array([v[0], v[1], 0.0]),
+        np.zeros(3),
+        0.0,
+        np.eye(3) * std**2,
+        t_meas,
+    )
+
+
+def test_exploration_after_a_loss_covers_what_the_platform_can_reach_from_its_last_sighting() -> None:
+    """Seen at t = 10 s at (5, 0) with 0.5 m std, 3 m/s east; at t = 30 s the prediction has run on to
+    (65, 0) with 100 m std. The platform is within 1.5 m + 4 m/s x 20 s = 81.5 m of (5, 0), wherever the
+    prediction went; the exploration covers that square and spirals out from (5, 0)."""
+    g = _guidance(max_platform_speed_mps=4.0)
+    hover = np.array([0.0, 0.0, 12.0])
+    g.update(
+        10.0, Mode.TRACK, _ego(10.0, [5.0, 0.0, 4.0]), _estimate(10.0, (5, 0), (3, 0), 0.5, 10.0), None, hover
+    )
+    lost = _estimate(30.0, (65, 0), (3, 0), 100.0, 10.0)
+    g.update(30.0, Mode.EXPLORE, _ego(30.0, [60.0, 0.0, 12.0]), lost, None, hover)
+    assert g._area == pytest.approx((5.0 - 81.5, 5.0 + 81.5, -81.5, 81.5))
+    assert g._route is not None
+    first_leg_start = g._route.segments[1].sample(g._route.segments[1].t0)[0]  # after the approach
+    assert np.hypot(first_leg_start[0] - 5.0, first_leg_start[1]) < 15.0
+
+
+def test_a_platform_seen_faster_than_the_configured_bound_widens_the_reach() -> None:
+    g = _guidance(max_platform_speed_mps=4.0)
+    hover = np.array([0.0, 0.0, 12.0])
+    g.update(
+        10.0, Mode.TRACK, _ego(10.0, [5.0, 0.0, 4.0]), _estimate(10.0, (5, 0), (6, 8), 0.5, 10.0), None, hover
+    )
+    g.update(
+        30.0,
+        Mode.EXPLORE,
+        _ego(30.0, [60.0, 0.0, 12.0]),
+        _estimate(30.0, (205, 160), (6, 8), 99.0, 10.0),
+        None,
+        hover,
+    )
+    # 1.5 m + 10 m/s x 20 s
+    assert g._area == pytest.approx((5.0 - 201.5, 5.0 + 201.5, -201.5, 201.5))
+
+
+def _search_centre(g: Guidance, t: float, target: PlatformEstimate) -> tuple[np.ndarray, np.ndarray]:
+    ref = g.reference(t, Mode.SEARCH, target)
+    rho, th = g.search_radius_m, g._theta
+    return ref.p[:2] - rho * np.array([np.cos(th), np.sin(th)]), ref.v[:2]
+
+
+@pytest.mark.parametrize("bounded", [True, False])
+def test_the_search_centre_holds_once_the_prediction_outgrows_the_reach(bounded: bool) -> None:
+    """Seen at t = 10 s at (5, 0), 0.5 m std, 3 m/s east; the reach is 1.5 m + 4 m/s x (t - 10). The
+    prediction's 3 sigma: 3 m at 13 s (reach 13.5: follow), 15 m at 14 s (17.5: follow), 30 m at 15 s
+    (21.5: hold there, at (20, 0)), and the centre stays at (20, 0) at 16 s. Without a speed bound (the
+    papers' presets) the centre follows the prediction throughout."""
+    g = _guidance(max_platform_speed_mps=4.0) if bounded else _guidance()
+    hover = np.array([0.0, 0.0, 12.0])
+    ego = _ego(10.0, [5.0, 0.0, 4.0])
+    g.update(10.0, Mode.TRACK, ego, _estimate(10.0, (5, 0), (3, 0), 0.5, 10.0), None, hover)
+    for t, x, std in ((13.0, 14.0, 1.0), (14.0, 17.0, 5.0), (15.0, 20.0, 10.0), (16.0, 23.0, 20.0)):
+        target = _estimate(t, (x, 0), (3, 0), std, 10.0)
+        g.update(t, Mode.SEARCH, _ego(t, [x, 0.0, 12.0]), target, None, hover)
+        c, v = _search_centre(g, t, target)
+        held = bounded and t >= 15.0
+        np.testing.assert_allclose(c, [20.0, 0.0] if held else [x, 0.0], atol=1e-9)
+        # the reference's velocity is the centre's (0 once held) plus the spiral's, which is tangential
+        v_spiral = v - (np.zeros(2) if held else np.array([3.0, 0.0]))
+        radial = np.array([np.cos(g._theta), np.sin(g._theta)])
+        assert float(v_spiral @ radial) == pytest.approx(0.0, abs=1e-9)

@@ -9,7 +9,9 @@
 - search (target lost, coast over): a spiral centred on the platform's *predicted* position, flown
   relative to that moving prediction, whose radius grows with the prediction's uncertainty (3 standard
   deviations of its position plus ``search_speed_uncertainty_mps`` times the time since the last
-  sighting), at the exploration altitude;
+  sighting), at the exploration altitude; with ``max_platform_speed_mps`` the centre stops following the
+  prediction once its 3 standard deviations outgrow the square the platform can have reached since it
+  was last seen, and a later exploration covers that square, spiralling out from the last sighting;
 - descent hold: while the mission says a descent gate is marginal, the descent pauses at its height and
   keeps matching the platform;
 - go-around: keep matching the platform while climbing back to the tracking height above it;
@@ -165,8 +167,10 @@ class GuidanceConfig:
     papers' tracking height rule alone)."""
     max_platform_speed_mps: float | None = None
     """The fastest the platform may drive (m/s): the initial search area grows by this much per second
-    since take-off on every side, and a search after the platform was seen is centred on its prediction.
-    None: the fixed ``search_area``."""
+    since take-off on every side; once the platform was seen, an exploration covers the square it can
+    have reached since its last sighting (faster if it was seen faster), and the search spiral stops
+    following a prediction whose uncertainty has outgrown that square. None: the fixed ``search_area``
+    and a search that follows the prediction."""
 
     def __post_init__(self) -> None:
         if self.track_view_sigmas is not None and not (
@@ -283,6 +287,20 @@ class _SplitAxes:
         return out
 
 
+@dataclass(frozen=True, slots=True)
+class _Sighting:
+    """The platform where it was last measured."""
+
+    t: float
+    """Time of the measurement (s)."""
+    p_xy: tuple[float, float]
+    """The estimate's horizontal position at that time (m, W)."""
+    half_width_m: float
+    """3 standard deviations of that position (m)."""
+    speed_mps: float
+    """The estimate's horizontal speed at that time (m/s)."""
+
+
 class Guidance:
     """Turns the mission mode and the estimates into a reference trajectory."""
 
@@ -324,6 +342,11 @@ class Guidance:
         """Radius of the search around the predicted platform at the last reference (m)."""
         self._t_start: float | None = None
         self._area = self.config.search_area
+        self._area_from_sighting = False
+        self._sighting: _Sighting | None = None
+        self._search_centre: tuple[float, float] | None = None
+        """Where the search spiral holds its centre once the prediction says less than the speed bound
+        (None: it follows the prediction)."""
         self.t_intercept_s: float | None = None
         """Time from the last replanning to the intercept point (s), None when not computed."""
         self.plans_extended = 0
@@ -380,6 +403,8 @@ class Guidance:
         if self._t_start is None:
             self._t_start = t
         self._descent_hold = mission is not None and mission.descent_hold
+        if target is not None:
+            self._note_sighting(target)
         entered = mode is not self._mode
         if entered:
             if mode is Mode.EXPLORE:
@@ -440,8 +465,10 @@ class Guidance:
             x0, x1, y0, y1 = self._area
             spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
             if cfg.search_pattern == "spiral":
+                # around the last sighting the platform is likeliest near it: spiral out from there
+                centre = None if self._area_from_sighting else p0[:2]
                 waypoints = spiral_waypoints(
-                    x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, center_xy=p0[:2]
+                    x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, center_xy=centre
                 )
             else:
                 waypoints = lawnmower_waypoints(
@@ -456,6 +483,7 @@ class Guidance:
             self._z_land, self._t_land = float(ego.p_WB[2]), t
         elif mode is Mode.SEARCH:
             self._theta, self._t_search, self.search_radius_m = 0.0, t, 0.0
+            self._search_centre = None
         elif mode is Mode.ABORT:
             self._abort_phase = ""
             goal = np.array([p0[0], p0[1], max(mcfg.explore_altitude_m, float(p0[2]))])
@@ -494,21 +522,59 @@ class Guidance:
             waypoints, t0=t, p0=p0 - self._aim_W, v0=v0, cruise_speed_mps=cfg.cruise_speed_mps
         )
 
+    def _note_sighting(self, target: PlatformEstimate) -> None:
+        """Keep where the platform was at its last measurement (the estimate taken back to that time) and
+        how sure the estimate was there, for the reachable set of :meth:`_reach_m`."""
+        if self.config.max_platform_speed_mps is None:
+            return
+        t_meas = target.t_last_measurement
+        if not math.isfinite(t_meas) or (self._sighting is not None and t_meas <= self._sighting.t):
+            return
+        age = max(target.t - t_meas, 0.0)
+        x = float(target.p_WP[0] - target.v_WP[0] * age)
+        y = float(target.p_WP[1] - target.v_WP[1] * age)
+        half = 3.0 * position_std_m(target)
+        speed = math.hypot(float(target.v_WP[0]), float(target.v_WP[1]))
+        if all(math.isfinite(a) for a in (x, y, half, speed)):
+            self._sighting = _Sighting(t_meas, (x, y), half, speed)
+
+    def _reach_m(self, t: float) -> float:
+        """Half-width (m) of the square around the last sighting that the platform cannot have left by
+        ``t``: 3 standard deviations there plus the fastest speed x the time since (planning/envelope.py).
+        The fastest speed is ``max_platform_speed_mps``, or the speed the platform was seen at when that is
+        more (the configured bound is a prior; a platform seen faster has shown it wrong). Needs
+        ``max_platform_speed_mps`` and a sighting."""
+        assert self._sighting is not None and self.config.max_platform_speed_mps is not None
+        s = self._sighting
+        v_max = max(self.config.max_platform_speed_mps, s.speed_mps)
+        return search_half_width(s.half_width_m, t - s.t, v_max)
+
     def _search_area(self, t: float, target: PlatformEstimate | None) -> tuple[float, float, float, float]:
         """The area to explore from ``t``: the configured one, or with ``max_platform_speed_mps`` the area
         the platform can have reached: the configured area grown by speed x time since take-off
-        (planning/envelope.py), or, once the platform was seen, a square around its predicted position
-        of half-width 3 standard deviations plus speed x time since the last sighting."""
+        (planning/envelope.py), or, once the platform was seen, the square around where it was last seen
+        of half-width 3 standard deviations there plus speed x time since (:meth:`_reach_m`).
+
+        Not around the *predicted* position: after a long loss the prediction is a straight or circular
+        extrapolation of a few seconds of tracking, tens of metres from a platform that turned (a
+        figure-8's other lobe), and its own covariance says so (3 sigma in the hundreds of metres); the
+        speed bound around the last sighting is the tighter of the two, and it is certain."""
         cfg = self.config
         v = cfg.max_platform_speed_mps
+        self._area_from_sighting = False
         if v is None:
             return cfg.search_area
         x0, x1, y0, y1 = cfg.search_area
-        if target is not None:
-            half = search_half_width(3.0 * position_std_m(target), t - target.t_last_measurement, v)
+        if self._sighting is not None:
             half = max(
-                half, 0.5 * footprint_width_m(self.mission_config.explore_altitude_m, cfg.camera_fov_rad)
+                self._reach_m(t),
+                0.5 * footprint_width_m(self.mission_config.explore_altitude_m, cfg.camera_fov_rad),
             )
+            cx, cy = self._sighting.p_xy
+            self._area_from_sighting = True
+            return cx - half, cx + half, cy - half, cy + half
+        if target is not None:  # an estimate that never had a measurement (telemetry alone, say)
+            half = search_half_width(3.0 * position_std_m(target), t - target.t_last_measurement, v)
             cx, cy = float(target.p_WP[0]), float(target.p_WP[1])
             return cx - half, cx + half, cy - half, cy + half
         grow = search_half_width(0.0, t - (self._t_start if self._t_start is not None else t), v)
@@ -798,6 +864,20 @@ class Guidance:
         z_goal = mcfg.explore_altitude_m
         z = min(self._z_entry + cfg.climb_speed_mps * (t - self._mode_t0), z_goal)
         vz = cfg.climb_speed_mps if z < z_goal else 0.0
-        p = np.array([target.p_WP[0] + rho * c, target.p_WP[1] + rho * s, z])
-        v = np.array([target.v_WP[0] - rho * w * s, target.v_WP[1] + rho * w * c, vz])
+        cx, cy, vcx, vcy = self._search_centre_at(t, target)
+        p = np.array([cx + rho * c, cy + rho * s, z])
+        v = np.array([vcx - rho * w * s, vcy + rho * w * c, vz])
         return Reference.trusted(t, p, v, _ZERO3, _ZERO3, yaw, yaw_rate)
+
+    def _search_centre_at(self, t: float, target: PlatformEstimate) -> tuple[float, float, float, float]:
+        """Centre of the search spiral and its velocity (m, m/s): the prediction, until the prediction's
+        3 standard deviations outgrow the square the platform cannot have left since it was last seen
+        (:meth:`_reach_m`, with ``max_platform_speed_mps``). From then on the centre holds where it is:
+        the extrapolation says less than the speed bound, and following it on (a figure-8 platform
+        predicted straight on at 5 m/s) leads the search 100 m away from a platform that turned back."""
+        if self._search_centre is None and self._sighting is not None:
+            if 3.0 * position_std_m(target) > self._reach_m(t):
+                self._search_centre = (float(target.p_WP[0]), float(target.p_WP[1]))
+        if self._search_centre is not None:
+            return self._search_centre[0], self._search_centre[1], 0.0, 0.0
+        return float(target.p_WP[0]), float(target.p_WP[1]), float(target.v_WP[0]), float(target.v_WP[1])
