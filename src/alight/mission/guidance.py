@@ -573,7 +573,7 @@ class Guidance:
             cx, cy = self._sighting.p_xy
             self._area_from_sighting = True
             return cx - half, cx + half, cy - half, cy + half
-        if target is not None:  # an estimate that never had a measurement (telemetry alone, say)
+        if target is not None:  # no sighting kept: the estimate carries no finite measurement time
             half = search_half_width(3.0 * position_std_m(target), t - target.t_last_measurement, v)
             cx, cy = float(target.p_WP[0]), float(target.p_WP[1])
             return cx - half, cx + half, cy - half, cy + half
