@@ -120,22 +120,31 @@ def test_tilt_limit_keeps_the_vertical_part() -> None:
     assert cmd.thrust_N == pytest.approx(AF.weight_N, rel=1e-12)  # level vehicle: the vertical part only
 
 
-def test_no_feed_forward_rates_while_the_vertical_thrust_is_at_its_floor() -> None:
-    """A reference in near free fall with a sideways jerk: its own attitude turns at |j| / c, 40 rad/s at
-    c = 0.1 m/s^2. The vertical floor holds the thrust vector up, the commanded attitude is level (the
-    vehicle is level and on the reference), so the command is the feedback alone: zero rates. The same
-    jerk on a hover reference is fed forward in full, and so it is when only the tilt cone clips."""
+def test_feed_forward_rates_follow_the_commanded_thrust_at_the_vertical_floor() -> None:
+    """A reference in near free fall (c_ref = 0.1 m/s^2) with a sideways jerk: its own attitude turns at
+    |j| / c_ref = 40 rad/s. The vertical floor holds the commanded thrust at 2 m/s^2 (level vehicle on
+    the reference), whose direction turns at |j| / 2 for the same jerk: the feed-forward is the
+    reference's scaled by c_ref / |f| = 0.05. With no clip the jerk is fed forward exactly; when the floor
+    binds through the feedback (the reference 50 m below) with c_ref = g it is not scaled up, and a
+    tilt-cone clip keeps it whole."""
     ctl = HighLevelController(AF)
     j = np.array([0.0, 4.0, 0.0])
-    cmd = ctl.command(_ego(), _ref(a=(0.0, 0.0, -G + 0.1), j=j))
-    np.testing.assert_allclose(cmd.w_WB_B_cmd, 0.0, atol=1e-12)
-    assert cmd.thrust_N == pytest.approx(AF.mass * HighLevelGains().min_vertical_accel, rel=1e-12)
+    a_free = np.array([0.0, 0.0, -G + 0.1])
+    fz_min = HighLevelGains().min_vertical_accel
+    cmd = ctl.command(_ego(), _ref(a=a_free, j=j))
+    w_free = body_rates_from_jerk(a_free, j, 0.0, 0.0, v_W=np.zeros(3), rotor_drag=AF.rotor_drag)
+    assert abs(w_free[0]) == pytest.approx(40.0, rel=1e-9)
+    np.testing.assert_allclose(cmd.w_WB_B_cmd, w_free * 0.1 / fz_min, atol=1e-9)
+    assert cmd.thrust_N == pytest.approx(AF.mass * fz_min, rel=1e-12)
     # not clipped: the jerk is fed forward exactly
-    cmd = ctl.command(_ego(), _ref(j=j))
     w = body_rates_from_jerk(np.zeros(3), j, 0.0, 0.0, v_W=np.zeros(3), rotor_drag=AF.rotor_drag)
-    np.testing.assert_allclose(cmd.w_WB_B_cmd, w, atol=1e-12)
+    np.testing.assert_allclose(ctl.command(_ego(), _ref(j=j)).w_WB_B_cmd, w, atol=1e-12)
     assert abs(w[0]) > 0.3
-    # the tilt cone clipping (20 m off the reference sideways): the jerk still adds its rates
+    # floored by the feedback, c_ref = g > |f| = 2: fed forward whole, not amplified
+    low = ctl.command(_ego(), _ref(p=(0.0, 0.0, -50.0), j=j)).w_WB_B_cmd
+    low0 = ctl.command(_ego(), _ref(p=(0.0, 0.0, -50.0))).w_WB_B_cmd
+    np.testing.assert_allclose(low - low0, w, atol=1e-12)
+    # the tilt cone clipping (20 m off the reference sideways): whole as well
     far_jerk = ctl.command(_ego(), _ref(p=(20.0, 0.0, 0.0), j=j)).w_WB_B_cmd
     far = ctl.command(_ego(), _ref(p=(20.0, 0.0, 0.0))).w_WB_B_cmd
     np.testing.assert_allclose(far_jerk - far, w, atol=1e-12)

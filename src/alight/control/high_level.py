@@ -12,11 +12,11 @@ mixing, saturation, and body-rate control for accurate aggressive quadrotor flig
    normalised) evaluated on the reference, so the drag is compensated by feed-forward, not by feedback;
 3. tilt limit on ``f_des`` (its vertical part has priority), desired attitude from ``f_des`` and the
    reference yaw, collective thrust ``c = f_des . z_B`` projected on the CURRENT body z axis;
-4. body rates = feed-forward rates of the reference (from the jerk and the yaw rate; dropped while
-   step 3 holds the vertical part at its floor, where the reference is near free fall and its rates
-   blow up) + a tilt-prioritised attitude-error feedback (Faessler 2017: the error quaternion is split
-   into a tilt part, which the thrust direction and thus the position depend on, and a yaw part, which
-   has the least authority).
+4. body rates = feed-forward rates of the reference (from the jerk and the yaw rate; scaled down by
+   c_ref / |f_des| while step 3 holds the vertical part at its floor, so that a reference near free
+   fall does not feed its huge rates) + a tilt-prioritised attitude-error feedback (Faessler 2017: the
+   error quaternion is split into a tilt part, which the thrust direction and thus the position depend
+   on, and a yaw part, which has the least authority).
 
 Yaw parametrisation. The attitude is built as in Faessler 2018 (x_B from y_C): with ``y_C = (-sin psi,
 cos psi, 0)``, ``x_B = y_C x z_B / |y_C x z_B|``, ``y_B = z_B x x_B``. Then ``x_B`` lies in the vertical
@@ -293,7 +293,7 @@ def high_level_kernel(
     d = params[HL_DRAG : HL_DRAG + 3]
 
     # Feed-forward: attitude, thrust vector and body rates of the reference (flatness, with drag).
-    _flat_state(a_ref, v_ref, j_ref, yaw_ref, yaw_rate_ref, d, R_ref, f_ref, w_ref)
+    c_ref = _flat_state(a_ref, v_ref, j_ref, yaw_ref, yaw_rate_ref, d, R_ref, f_ref, w_ref)
 
     # Step 1-2: f_des = a_ref + K_p e_p + K_v e_v + K_i int(e_p) - g + R_ref D R_ref^T v_ref.
     f = np.empty(3)
@@ -364,13 +364,18 @@ def high_level_kernel(
     lim = params[HL_RATE_LIM]
     ok = math.isfinite(c_cmd)  # before the clamps, which could hide a NaN
     # The feed-forward rates are the rates of the reference's attitude, |j_perp| / c_ref. When step 3 had
-    # to raise the vertical part to its floor, the reference asks for nearly free fall: c_ref is small,
-    # its rates are huge, and the commanded attitude (held up by the floor) does not turn with them.
-    # Feeding them then tips the vehicle over (a Matrice 100 in 12 m/s wind, descending from a climb's
-    # overshoot: 65 deg of tilt, then a flip). A tilt-cone clip keeps them: the clipped attitude still
-    # turns with the reference's horizontal thrust, and dropping them there slowed a take-off's chase
-    # of a 6 m/s platform (the pad seen 0.3 s later on 5 of 20 brake seeds).
-    ff = 0.0 if floored else 1.0
+    # to raise the vertical part to its floor, the commanded thrust vector is not the reference's, and
+    # its direction turns at |j_perp| / |f| for the same jerk: the rates are rescaled by c_ref / |f|.
+    # Where the reference asks for nearly free fall, c_ref is small and its own rates are huge: fed in
+    # full they tipped a Matrice 100 over (12 m/s wind, a descent from a climb's overshoot: 65 deg of
+    # tilt, then a flip). Never scaled up: on a deck the floor binds through the feedback (the descent
+    # reference goes on below the deck) with c_ref near g, and the reference's rates stay as they are.
+    # A tilt-cone clip keeps them too: dropping them there slowed a take-off's chase of a 6 m/s platform
+    # (the pad seen 0.3 s later on 5 of 20 brake seeds).
+    ff = 1.0
+    if floored:
+        f_norm = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+        ff = min(1.0, c_ref / f_norm)
     for k in range(3):
         wff = ff * (R[0, k] * wW0 + R[1, k] * wW1 + R[2, k] * wW2)
         if k == 0:
