@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from alight.errors import ReplayError
 from alight.evaluation.log import log_channel
-from alight.types import Observation, quat_to_rotmat
+from alight.types import G_W, Observation, quat_to_rotmat
 
 IMAGE_TOPIC = "/alight/camera/image_raw"
 ODOMETRY_TOPIC = "/alight/odometry"
@@ -46,7 +46,6 @@ IMU_TOPIC = "/alight/imu"
 RANGE_TOPIC = "/alight/range"
 TRUTH_UAV_TOPIC = "/alight/ground_truth/uav"
 TRUTH_PLATFORM_TOPIC = "/alight/ground_truth/platform"
-G_W = np.array([0.0, 0.0, -9.81])
 RANGE_MAX_M = 40.0
 """``max_range`` written in every Range message (m), the simulated TeraRanger's."""
 

@@ -54,14 +54,13 @@ from alight.planning.exploration import (
     spiral_waypoints,
 )
 from alight.planning.min_jerk import MinJerkTrajectory
-from alight.types import EgoState, FloatArray, Mode, PlatformEstimate, Reference, wrap_angle
+from alight.types import GRAVITY_MPS2, EgoState, FloatArray, Mode, PlatformEstimate, Reference, wrap_angle
 
 if TYPE_CHECKING:
     from alight.estimation import PlatformEstimator
 
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
-_GRAVITY = 9.81
 _AIMED_MODES = (Mode.TAKEOFF, Mode.EXPLORE)
 _SCAN_MODES = (Mode.TAKEOFF, Mode.EXPLORE, Mode.SEARCH)
 
@@ -82,7 +81,7 @@ class GuidanceConfig:
     """Vertical speed of a go-around (m/s)."""
     takeoff_climb_speed_mps: float | None = None
     """Peak vertical speed of the take-off climb (m/s); None: half ``cruise_speed_mps``."""
-    max_climb_accel_mps2: float = 0.5 * (DEFAULT_AIRFRAME.thrust_to_weight - 1.0) * _GRAVITY
+    max_climb_accel_mps2: float = 0.5 * (DEFAULT_AIRFRAME.thrust_to_weight - 1.0) * GRAVITY_MPS2
     """Largest vertical acceleration the take-off climb is planned with (m/s^2): half the airframe's
     spare thrust, leaving the other half to the position loop."""
     land_floor_below_pad_m: float = 0.3
@@ -255,8 +254,8 @@ def _side_force_over_g(
     ax, ay, az = (vx - prev[1]) / dt, (vy - prev[2]) / dt, (vz - prev[3]) / dt
     # The thrust direction is (a - f/m + g e3) / |.|, so the side force per unit mass over g is
     # tan(tilt) (1 + a_z / g) - a_xy / g.
-    scale = (1.0 + az / _GRAVITY) / zb_z
-    return sample, (dt, zb_x * scale - ax / _GRAVITY, zb_y * scale - ay / _GRAVITY)
+    scale = (1.0 + az / GRAVITY_MPS2) / zb_z
+    return sample, (dt, zb_x * scale - ax / GRAVITY_MPS2, zb_y * scale - ay / GRAVITY_MPS2)
 
 
 def _peak_vertical_accel(traj: MinJerkTrajectory) -> float:
@@ -665,7 +664,7 @@ class Guidance:
         # follow, falls more than 1 m/s off the reference, each replanning restarts from its velocity,
         # and the reference keeps climbing (envelope wind, seed 2469339022: 83 m up). No more than it
         # starts with either, when that is already beyond the limit.
-        a_limit = max(min(self.config.max_climb_accel_mps2, 0.5 * _GRAVITY), abs(float(a0[2])))
+        a_limit = max(min(self.config.max_climb_accel_mps2, 0.5 * GRAVITY_MPS2), abs(float(a0[2])))
         while True:
             if plan.t_end - t <= T_z:
                 return plan  # the plan's own height profile is no shorter: fly it as it is
@@ -708,9 +707,9 @@ class Guidance:
         top = horizontal_speed_limit(cfg.max_tilt_rad, cfg.rotor_drag_per_s)
         speed = min(cfg.max_speed_mps, cfg.speed_margin * top)
         # horizontal acceleration: the tilt limit, and what the thrust limit leaves beside gravity
-        a_h = math.tan(cfg.max_tilt_rad) * _GRAVITY
-        if pcfg.f_max > _GRAVITY:
-            a_h = min(a_h, math.sqrt(pcfg.f_max**2 - _GRAVITY**2))
+        a_h = math.tan(cfg.max_tilt_rad) * GRAVITY_MPS2
+        if pcfg.f_max > GRAVITY_MPS2:
+            a_h = min(a_h, math.sqrt(pcfg.f_max**2 - GRAVITY_MPS2**2))
         a_h *= cfg.speed_margin
         grid = np.linspace(0.0, 60.0, 241)
         p, _, _, _ = estimator.predict_ahead(t + grid)

@@ -19,9 +19,8 @@ import math
 
 import numpy as np
 
-from alight.types import FloatArray
+from alight.types import GRAVITY_MPS2, FloatArray
 
-GRAVITY_MPS2 = 9.81
 MIN_JERK_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 """Peak acceleration of a rest-to-rest minimum-jerk move over distance d in time T is this times d / T^2
 (5.77; the quintic 10 s^3 - 15 s^4 + 6 s^5 has its largest second derivative at s = 1/2 - sqrt(3)/6)."""
