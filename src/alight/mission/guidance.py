@@ -341,7 +341,8 @@ class Guidance:
         """Radius of the search around the predicted platform at the last reference (m)."""
         self._t_start: float | None = None
         self._area = self.config.search_area
-        self._area_from_sighting = False
+        self._area_centre: tuple[float, float] | None = None
+        """Where the exploration's spiral starts when the area is around a sighting (None: at the vehicle)."""
         self._sighting: _Sighting | None = None
         self._search_centre: tuple[float, float] | None = None
         """Where the search spiral holds its centre once the prediction says less than the speed bound
@@ -407,7 +408,7 @@ class Guidance:
         entered = mode is not self._mode
         if entered:
             if mode is Mode.EXPLORE:
-                self._area = self._search_area(t, target)
+                self._area, self._area_centre = self._search_area(t, target)
             self._enter(t, mode, ego, hover_point_W)
         if mode is Mode.ABORT and mission is not None and mission.abort_phase != self._abort_phase:
             self._enter_abort_phase(t, ego, mission.abort_phase, mission.abort_goal_W)
@@ -465,7 +466,7 @@ class Guidance:
             spacing = footprint_width_m(mcfg.explore_altitude_m, cfg.camera_fov_rad, cfg.coverage_overlap)
             if cfg.search_pattern == "spiral":
                 # around the last sighting the platform is likeliest near it: spiral out from there
-                centre = None if self._area_from_sighting else p0[:2]
+                centre = p0[:2] if self._area_centre is None else np.array(self._area_centre)
                 waypoints = spiral_waypoints(
                     x0, x1, y0, y1, mcfg.explore_altitude_m, spacing, center_xy=centre
                 )
@@ -548,11 +549,14 @@ class Guidance:
         v_max = max(self.config.max_platform_speed_mps, s.speed_mps)
         return search_half_width(s.half_width_m, t - s.t, v_max)
 
-    def _search_area(self, t: float, target: PlatformEstimate | None) -> tuple[float, float, float, float]:
-        """The area to explore from ``t``: the configured one, or with ``max_platform_speed_mps`` the area
-        the platform can have reached: the configured area grown by speed x time since take-off
-        (planning/envelope.py), or, once the platform was seen, the square around where it was last seen
-        of half-width 3 standard deviations there plus speed x time since (:meth:`_reach_m`).
+    def _search_area(
+        self, t: float, target: PlatformEstimate | None
+    ) -> tuple[tuple[float, float, float, float], tuple[float, float] | None]:
+        """The area to explore from ``t`` and where its spiral starts (None: at the vehicle): the configured
+        area, or with ``max_platform_speed_mps`` the area the platform can have reached: the configured
+        area grown by speed x time since take-off (planning/envelope.py), or, once the platform was seen,
+        the square around where it was last seen of half-width 3 standard deviations there plus speed x
+        time since (:meth:`_reach_m`), spiralling out from that sighting.
 
         Not around the *predicted* position: after a long loss the prediction is a straight or circular
         extrapolation of a few seconds of tracking, tens of metres from a platform that turned (a
@@ -560,9 +564,8 @@ class Guidance:
         speed bound around the last sighting is the tighter of the two, and it is certain."""
         cfg = self.config
         v = cfg.max_platform_speed_mps
-        self._area_from_sighting = False
         if v is None:
-            return cfg.search_area
+            return cfg.search_area, None
         x0, x1, y0, y1 = cfg.search_area
         if self._sighting is not None:
             half = max(
@@ -570,14 +573,14 @@ class Guidance:
                 0.5 * footprint_width_m(self.mission_config.explore_altitude_m, cfg.camera_fov_rad),
             )
             cx, cy = self._sighting.p_xy
-            self._area_from_sighting = True
-            return cx - half, cx + half, cy - half, cy + half
+            x0, x1, y0, y1 = cx - half, cx + half, cy - half, cy + half
+            return (x0, x1, y0, y1), (0.5 * (x0 + x1), 0.5 * (y0 + y1))  # the area's centre, as the spiral's
         if target is not None:  # no sighting kept: the estimate carries no finite measurement time
             half = search_half_width(3.0 * position_std_m(target), t - target.t_last_measurement, v)
             cx, cy = float(target.p_WP[0]), float(target.p_WP[1])
-            return cx - half, cx + half, cy - half, cy + half
+            return (cx - half, cx + half, cy - half, cy + half), None
         grow = search_half_width(0.0, t - (self._t_start if self._t_start is not None else t), v)
-        return x0 - grow, x1 + grow, y0 - grow, y1 + grow
+        return (x0 - grow, x1 + grow, y0 - grow, y1 + grow), None
 
     def _track_height(self, t: float, ego: EgoState, target: PlatformEstimate, initialized: bool) -> float:
         """Height above the pad to track at (m).
