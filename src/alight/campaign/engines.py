@@ -79,8 +79,8 @@ DEFAULT_MISSION_FN = "alight.campaign.engines:fly_mission"
 ENGINES = ("local", "dask")
 STARTUP_TIMEOUT_S = 900.0
 """A sandbox that is not ready (imports and warm-up done) after this long is treated as broken (s). The
-warm-up compiles numba kernels when the cache is cold: 25-45 s of CPU per preset (100-200 signatures,
-``benchmarks/numba_compile.py``), minutes of wall time on a busy machine."""
+warm-up compiles numba kernels when the cache is cold: 25-100 s of CPU per preset (100-200 signatures,
+``benchmarks/numba_compile.py``; the high end on a slow machine), minutes of wall time on a busy one."""
 SCRATCH_PREFIX = "alight-box-"
 """Name of a sandbox's scratch directory in the temporary directory: ``alight-box-<owner pid>-<random>``."""
 PARENT_POLL_S = 0.5
