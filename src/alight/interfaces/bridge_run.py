@@ -108,11 +108,18 @@ def run_bridge(
     return result
 
 
+EMULATOR_SCENARIO_WAIT_S = 300.0
+"""How long the bridge waits for the emulator's scenario once its camera stream is connected (s). The
+emulator sends it when it accepts the stream, after warming its own kernels up, which takes minutes on a
+cold numba cache and a busy machine (10 s was too short for four emulator-bridge pairs started together
+on 2 cores). An emulator that ends closes the stream, and that ends the wait at once."""
+
+
 def _scenario(cam: CameraSource, path: str | Path | None) -> Scenario:
     if path is not None:
         return load_scenario(path)
     if isinstance(cam, SocketCameraSource):
-        deadline = time.monotonic() + 10.0
+        deadline = time.monotonic() + EMULATOR_SCENARIO_WAIT_S
         while cam.scenario is None and time.monotonic() < deadline and cam.open:
             cam.poll()
             time.sleep(0.01)
