@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from alight.evaluation.replay import FrameRecorder
 from alight.evaluation.runner import MissionRun, run_mission
 from alight.mission.pipeline import Pipeline
 from alight.perception import FrameGate
@@ -38,7 +39,12 @@ class _Counts:
 
 
 def _fly(
-    monkeypatch: pytest.MonkeyPatch, scenario: dict[str, Any], *, every: bool
+    monkeypatch: pytest.MonkeyPatch,
+    scenario: dict[str, Any],
+    *,
+    every: bool,
+    recorder: FrameRecorder | None = None,
+    wanted: bool = True,
 ) -> tuple[MissionRun, _Counts]:
     c = _Counts()
     render, on_image = Renderer.render, Pipeline.on_image
@@ -56,7 +62,13 @@ def _fly(
     with monkeypatch.context() as m:
         m.setattr(Renderer, "render", counting_render)
         m.setattr(Pipeline, "on_image", spying_on_image)
-        run = run_mission(scenario_from_dict(scenario), record=True, render_every_frame=every)
+        run = run_mission(
+            scenario_from_dict(scenario),
+            record=True,
+            render_every_frame=every,
+            frame_sink=recorder,
+            frame_wanted=recorder.wants if recorder is not None and wanted else None,
+        )
     return run, c
 
 
@@ -111,6 +123,32 @@ def test_frames_a_qos_rate_skips_are_never_rendered_and_the_mission_is_unchanged
     assert c.renders == read  # rendered exactly the frames the detector read
     assert len(c_full.renders) == len(c.images)
     assert det.frames_skipped == len(skipped) and det.frames_processed == len(read)
+
+
+def test_a_recorder_gets_the_frames_it_keeps_rendered_and_nothing_more(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The campaign records every mission for a failure's replay: with the recorder's frame_wanted, a
+    # gated detector's skipped frames are rendered only where the recorder keeps one, the mission is
+    # unchanged, and the recorder keeps the same frames as when every frame is rendered for it.
+    s = {**BASE, "preset": "zamanakos_sdu", "perception": {"rate_hz": 20.0}}
+    lazy, c = _fly(monkeypatch, s, every=False)
+    rec = FrameRecorder(rate_hz=8.0)
+    kept, c_kept = _fly(monkeypatch, s, every=False, recorder=rec)
+    rec_all = FrameRecorder(rate_hz=8.0)
+    _, c_all = _fly(monkeypatch, s, every=False, recorder=rec_all, wanted=False)
+    _same(lazy, kept)
+    read = {t for t, used in c.images if used}
+    kept_t = [t for t, _, _ in rec.frames]
+    assert c_kept.renders == sorted(read | set(kept_t))
+    assert len(c_all.renders) == len(c.images)  # without frame_wanted a sink sees every frame
+    assert len(c_kept.renders) < len(c_all.renders)
+    # the 20 Hz camera's frames 0.05 s apart, one kept per 0.125 s: alternately 0.15 and 0.10 s apart
+    assert np.all(np.round(np.diff(kept_t), 6) >= 0.1) and len(kept_t) > 10
+    assert [f[0] for f in rec.frames] == [f[0] for f in rec_all.frames]
+    for a, b in zip(rec.frames, rec_all.frames, strict=True):
+        np.testing.assert_array_equal(a[1], b[1])
+        assert [o.kind for o in a[2]] == [o.kind for o in b[2]]
 
 
 def test_qos_will_process_answers_what_detect_then_does() -> None:

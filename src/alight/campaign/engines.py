@@ -125,27 +125,22 @@ def max_rss_mib() -> float:
 
 def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
     """The campaign's mission: fly ``scenario`` with the log on (the flight energy and the platform
-    estimate's RMSE come from it). When it did not land, fly it again through ``fly_to_dir`` into
-    ``out_dir``: the same scenario is the same flight (everything is seeded), and ``fly_to_dir`` writes
-    the mission's logs, plots, report.html and its animated replay (replay.gif). The second
-    flight is checked against the first (``reflight`` in the result)."""
-    from alight.evaluation.mission_io import fly_to_dir
+    estimate's RMSE come from it) and a :class:`~alight.evaluation.replay.FrameRecorder`. When it did
+    not land, write the mission's logs, plots, report.html and animated replay (replay.gif) into
+    ``out_dir`` from that same flight.
+
+    Why one flight: flying a failure a second time to record it took half of a failed mission's time
+    (issue 18). The recorder keeps 10 downscaled frames per second (about 27 MB for 30 s of a 752x480
+    camera), and renders no frame the detector would not have read except the ones it keeps."""
+    from alight.evaluation.mission_io import write_mission_dir
+    from alight.evaluation.replay import FrameRecorder
     from alight.evaluation.runner import run_mission
 
-    run = run_mission(scenario, record=True)
-    result = dict(run.result)
-    if result["outcome"] != "landed":
-        again = fly_to_dir(scenario, out_dir, replay=True).result
-        same = all(
-            again.get(k) == result.get(k) for k in ("outcome", "touchdown_error_m", "simulated_time_s")
-        )
-        result["reflight"] = {"outcome": again["outcome"], "same_flight": same}
-        if not same:
-            result["reflight"]["note"] = (
-                f"the recorded re-flight differs from the campaign's flight: {again['outcome']} at "
-                f"{again['simulated_time_s']} s vs {result['outcome']} at {result['simulated_time_s']} s"
-            )
-    return result
+    recorder = FrameRecorder()
+    run = run_mission(scenario, record=True, frame_sink=recorder, frame_wanted=recorder.wants)
+    if run.result["outcome"] != "landed":
+        write_mission_dir(Path(out_dir), scenario, run, recorder=recorder)
+    return dict(run.result)
 
 
 # -- naming mission functions -----------------------------------------------------------------------------

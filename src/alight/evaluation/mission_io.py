@@ -63,18 +63,40 @@ def fly_to_dir(
     """Fly ``scenario`` and write its outputs into ``out_dir`` (created if needed); with ``replay`` also
     the animated replay ``replay.gif`` (camera view with detections beside a top view). ``frame_sinks``
     also see every camera frame (exports such as ``alight fly --mcap``)."""
+    out = make_out_dir(out_dir)
+    recorder = FrameRecorder() if replay else None
+    sinks: list[FrameSink] = [*([recorder] if recorder is not None else []), *frame_sinks]
+    # The recorder alone asks only for the frames it keeps; any other sink sees every frame.
+    wanted = recorder.wants if recorder is not None and not frame_sinks else None
+    run = run_mission(scenario, record=True, frame_sink=_fan_out(sinks), frame_wanted=wanted)
+    write_mission_dir(out, scenario, run, report=report, recorder=recorder)
+    return run
+
+
+def make_out_dir(out_dir: str | Path) -> Path:
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
-    recorder = FrameRecorder() if replay else None
-    sinks: list[FrameSink] = [*([recorder] if recorder is not None else []), *frame_sinks]
-    run = run_mission(scenario, record=True, frame_sink=_fan_out(sinks))
-    if run.log is None:  # record=True always logs; this guards a future change of run_mission
-        raise RuntimeError("run_mission returned no log")
+    return out
+
+
+def write_mission_dir(
+    out: Path,
+    scenario: Scenario,
+    run: MissionRun,
+    *,
+    report: bool = True,
+    recorder: FrameRecorder | None = None,
+) -> None:
+    """Write a flown mission's files into ``out`` (an existing directory): the log, the scenario, the
+    result, with ``report`` the figures and report.html, and with a ``recorder`` (the flight's
+    :class:`FrameRecorder`) the animated replay."""
+    if run.log is None:
+        raise ValueError("the mission was flown without its log (run_mission(record=True) writes one)")
     save_arrays(run.log, out)
-    if replay and recorder is not None:
+    if recorder is not None:
         r = run.result
         write_replay(
             run.log,
@@ -87,4 +109,3 @@ def fly_to_dir(
         write_mission_report(out, run.result, run.log, run.events)
     write_scenario_yaml(out / SCENARIO_YAML, scenario.model_dump(mode="json"))
     write_result(out, run.result)
-    return run

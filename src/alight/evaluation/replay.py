@@ -100,12 +100,17 @@ class FrameRecorder:
         self.frames: list[Frame] = []
         self._t_next = -math.inf
 
+    def wants(self, t_capture: float) -> bool:
+        """Whether the frame captured at ``t_capture`` would be kept (the runner's ``frame_wanted``: a
+        frame the detector skips is rendered only for this)."""
+        # A small tolerance: capture times are multiples of the camera period, in floating point.
+        return float(t_capture) + 1e-9 >= self._t_next
+
     def __call__(
         self, t_capture: float, image: NDArray[np.uint8], observations: Sequence[Observation]
     ) -> None:
         t = float(t_capture)
-        # A small tolerance: capture times are multiples of the camera period, in floating point.
-        if t + 1e-9 < self._t_next:
+        if not self.wants(t):
             return
         self._t_next = t + 1.0 / self.rate_hz
         img = np.asarray(image)

@@ -60,12 +60,15 @@ def run_mission(
     airframe: Airframe | None = None,
     record: bool = True,
     frame_sink: FrameSink | None = None,
+    frame_wanted: Callable[[float], bool] | None = None,
     render_every_frame: bool = False,
 ) -> MissionRun:
     """Fly one mission of ``scenario`` and return its result (and log when ``record``). ``airframe``
     overrides the scenario's ``airframe:``; the simulator, the wind's drag and the preset's controller
     and planner all read this one. ``frame_sink`` sees every camera frame with its detections (for
-    replays); it must not modify them.
+    replays); it must not modify them. With ``frame_wanted(t_capture)``, the sink sees only the frames
+    the pipeline reads or that predicate asks for (a replay's :class:`FrameRecorder` keeps 10 per
+    second), so a gated detector's skipped frames need not be rendered for it.
 
     Camera frames are rendered only when the pipeline will look at them: not when lost, not when dark
     (a blackout), not when the detector skips them (:class:`~alight.perception.FrameGate`); the mission
@@ -94,7 +97,9 @@ def run_mission(
     every_mission = max(1, round(1.0 / (preset.planner_rate_hz * TICK_DT)))
     every_log = round(1.0 / (50.0 * TICK_DT))
     camera = world.renderer is not None
-    render_all = render_every_frame or frame_sink is not None or faults.remembers_frames
+    render_all = (
+        render_every_frame or (frame_sink is not None and frame_wanted is None) or faults.remembers_frames
+    )
 
     log = MissionLog() if record else None
     thrust_N, w_cmd = 0.0, np.zeros(3)
@@ -137,9 +142,13 @@ def run_mission(
             if camera:
                 assert isinstance(frame, Shot)
                 used = render_all or pipeline.will_process_image(t_cap)
-                image = world.develop(frame, t_cap, used=used)
+                wanted = frame_wanted is not None and frame_wanted(t_cap)
+                shown = frame_sink is not None and (used or wanted)
+                # Rendering a frame the detector skips changes nothing: its noise is drawn in the shot.
+                image = world.develop(frame, t_cap, used=used or shown)
                 observations, measurements = pipeline.on_image(t_cap, image)
-                if frame_sink is not None:
+                if shown:
+                    assert frame_sink is not None
                     frame_sink(t_cap, image, observations)
             else:
                 measurements = pipeline.on_observations(t_cap, frame)  # type: ignore[arg-type]
