@@ -216,3 +216,49 @@ def test_frame_recorder_turns_the_cameras_bgr_into_rgb():
     rec(0.0, bgr, [])
     rgb = rec.frames[0][1]
     assert rgb[0, 0].tolist() == [200, 0, 0]
+
+def test_frame_recorder_bounds_its_frames_and_keeps_them_even_over_a_long_mission():
+    # A 20 Hz camera over 130 s into a recorder of 10 Hz and at most 40 frames: the rate halves at the
+    # 40th frame (3.9 s: 20 left, 0.2 s apart), at 7.9 s and so on; every halving keeps the first frame.
+    rec = FrameRecorder(rate_hz=10.0, max_frames=40)
+    img = np.zeros((48, 64), np.uint8)
+    wanted = []
+    for k in range(2600):
+        t = k * 0.05
+        wanted.append(rec.wants(t))
+        rec(t, img, [])
+    t_kept = np.array([f[0] for f in rec.frames])
+    assert 20 <= len(t_kept) < 40
+    assert t_kept[0] == 0.0
+    # evenly spaced at the final period, which is a power-of-two multiple of 0.1 s
+    period = rec.period_s
+    assert math.log2(period / 0.1) == pytest.approx(round(math.log2(period / 0.1)))
+    np.testing.assert_allclose(np.diff(t_kept), period, atol=1e-9)
+    # the end of the mission is within one period of the last kept frame (the replay's end is shown)
+    assert 129.95 - t_kept[-1] < period
+    # wants() said yes for the frames kept at the time (some later dropped), never for more
+    assert len(t_kept) <= sum(wanted) < 2600 / 2
+
+
+def test_frame_recorder_at_its_default_bound_serves_every_camera_refresh_of_a_long_replay():
+    # 200 s of a 20 Hz camera: the replay is sped up to 30 s of playback and refreshes its camera panel
+    # at most 3 times a second of it, every 200 / 90 = 2.2 s of the mission; the 400-frame bound keeps
+    # at least 200 frames over the mission, at most 1 s apart.
+    rec = FrameRecorder()
+    img = np.zeros((48, 64), np.uint8)
+    for k in range(4000):
+        rec(k * 0.05, img, [])
+    t_kept = np.array([f[0] for f in rec.frames])
+    assert 200 <= len(t_kept) < 400
+    assert rec.period_s <= 1.0 < 200.0 / 90.0
+    np.testing.assert_allclose(np.diff(t_kept), rec.period_s, atol=1e-9)
+
+
+def test_frame_recorder_below_its_bound_keeps_every_tenth_of_a_second():
+    rec = FrameRecorder(rate_hz=10.0)  # 400 frames: 40 s at 10 Hz before any halving
+    img = np.zeros((48, 64), np.uint8)
+    for k in range(30 * 20):
+        rec(k * 0.05, img, [])
+    assert len(rec.frames) == 300 and rec.period_s == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="max_frames"):
+        FrameRecorder(max_frames=1)

@@ -131,7 +131,8 @@ def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
 
     Why one flight: flying a failure a second time to record it took half of a failed mission's time
     (issue 18). The recorder keeps 10 downscaled frames per second (about 27 MB for 30 s of a 752x480
-    camera), and renders no frame the detector would not have read except the ones it keeps."""
+    camera; at most 400 frames, 127 MB in colour, however long the mission), and has no frame rendered
+    that the detector would not have read except the ones it keeps."""
     from alight.evaluation.mission_io import write_mission_dir
     from alight.evaluation.replay import FrameRecorder
     from alight.evaluation.runner import run_mission

@@ -83,20 +83,33 @@ class FrameRecorder:
     """A ``frame_sink(t_capture, image, observations)`` that keeps camera frames for :func:`write_replay`.
 
     Keeps at most one frame per ``1 / rate_hz`` seconds of capture time, downscaled (area averaging) to
-    at most ``max_width_px`` wide, with the observations' pixels scaled to match; a 60 s mission at
-    10 Hz holds about 600 x 376 x 240 bytes (54 MB) instead of the full-size frames at the camera rate.
+    at most ``max_width_px`` wide, with the observations' pixels scaled to match, and at most
+    ``max_frames`` of them: when full, every other frame is dropped and the rate halved, so a long
+    mission keeps frames evenly spread over its whole length. A replay shows at most about 90 camera
+    images (``max_seconds`` x ``camera_hz`` of :func:`write_replay`), so the default 400 frames (40 s at
+    10 Hz before the first halving) leave every camera refresh of the GIF a frame as recent as at 10 Hz
+    up to 40 s, and within a refresh interval beyond. Memory: 400 x 376 x 282 x 3 bytes (127 MB) for a
+    colour camera, 36 MB for a 752 x 480 grey one, whatever the mission's length (a 120 s colour mission
+    kept 381 MB before the bound).
 
     Attributes:
         frames: the kept frames, in capture order, ready for ``write_replay(..., frames=...)``.
     """
 
-    def __init__(self, *, rate_hz: float = 10.0, max_width_px: int = CAMERA_PANEL_WIDTH_PX) -> None:
+    def __init__(
+        self, *, rate_hz: float = 10.0, max_width_px: int = CAMERA_PANEL_WIDTH_PX, max_frames: int = 400
+    ) -> None:
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
             raise ValueError(f"rate_hz must be positive, got {rate_hz}")
         if max_width_px < 16:
             raise ValueError(f"max_width_px must be >= 16, got {max_width_px}")
+        if max_frames < 2:
+            raise ValueError(f"max_frames must be >= 2, got {max_frames}")
         self.rate_hz = float(rate_hz)
         self.max_width_px = int(max_width_px)
+        self.max_frames = int(max_frames)
+        self.period_s = 1.0 / self.rate_hz
+        """The spacing of the kept frames now (s): ``1 / rate_hz``, doubled at each halving."""
         self.frames: list[Frame] = []
         self._t_next = -math.inf
 
@@ -112,7 +125,7 @@ class FrameRecorder:
         t = float(t_capture)
         if not self.wants(t):
             return
-        self._t_next = t + 1.0 / self.rate_hz
+        self._t_next = t + self.period_s
         img = np.asarray(image)
         if img.dtype != np.uint8 or img.ndim not in (2, 3):
             raise ValueError(f"camera frames must be uint8 (H, W) or (H, W, 3), got {img.dtype} {img.shape}")
@@ -128,6 +141,10 @@ class FrameRecorder:
         if img.ndim == 3:  # the camera's images are OpenCV's BGR; the replay's frames are RGB
             img = np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2RGB), dtype=np.uint8)
         self.frames.append((t, img, list(observations)))
+        if len(self.frames) >= self.max_frames:
+            del self.frames[1::2]  # the first frame stays: the spacing is even from the start
+            self.period_s *= 2.0
+            self._t_next = self.frames[-1][0] + self.period_s
 
 
 def _scaled(obs: Observation, sx: float, sy: float) -> Observation:
