@@ -217,6 +217,7 @@ def test_frame_recorder_turns_the_cameras_bgr_into_rgb():
     rgb = rec.frames[0][1]
     assert rgb[0, 0].tolist() == [200, 0, 0]
 
+
 def test_frame_recorder_bounds_its_frames_and_keeps_them_even_over_a_long_mission():
     # A 20 Hz camera over 130 s into a recorder of 10 Hz and at most 40 frames: the rate halves at the
     # 40th frame (3.9 s: 20 left, 0.2 s apart), at 7.9 s and so on; every halving keeps the first frame.
