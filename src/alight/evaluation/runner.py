@@ -142,13 +142,13 @@ def run_mission(
             if camera:
                 assert isinstance(frame, Shot)
                 used = render_all or pipeline.will_process_image(t_cap)
-                wanted = frame_wanted is not None and frame_wanted(t_cap)
-                shown = frame_sink is not None and (used or wanted)
-                # Rendering a frame the detector skips changes nothing: its noise is drawn in the shot.
-                image = world.develop(frame, t_cap, used=used or shown)
+                # A frame the detector skips is rendered for the sink only where it asks for it (and
+                # that changes nothing in the flight: the frame's noise is drawn in the shot).
+                asked = not used and frame_wanted is not None and frame_wanted(t_cap)
+                for_sink = frame_sink is not None and (used or asked)
+                image = world.develop(frame, t_cap, used=used or for_sink)
                 observations, measurements = pipeline.on_image(t_cap, image)
-                if shown:
-                    assert frame_sink is not None
+                if for_sink and frame_sink is not None:
                     frame_sink(t_cap, image, observations)
             else:
                 measurements = pipeline.on_observations(t_cap, frame)  # type: ignore[arg-type]
