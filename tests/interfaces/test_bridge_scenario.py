@@ -4,12 +4,13 @@ up, and ends at once when the emulator goes away."""
 from __future__ import annotations
 
 import json
+import socket
 import threading
 import time
 
 import pytest
 
-from alight.errors import ConfigError
+from alight.errors import InputError
 from alight.interfaces import bridge_run
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, SocketCameraSource, encode_message
 from alight.scenario import Scenario
@@ -54,7 +55,7 @@ def test_the_scenario_of_an_emulator_slower_than_the_old_10_s_is_waited_for(monk
     thread2 = _serve_after(server2, 0.8, hello)
     cam2 = SocketCameraSource("127.0.0.1", server2.port)
     try:
-        with pytest.raises(ConfigError, match="give --scenario"):
+        with pytest.raises(InputError, match="sent no scenario within 0.3 s"):
             bridge_run._scenario(cam2, None)
     finally:
         thread2.join(5.0)
@@ -69,10 +70,39 @@ def test_an_emulator_that_closes_without_a_scenario_ends_the_wait_at_once() -> N
     cam = SocketCameraSource("127.0.0.1", server.port)
     t0 = time.monotonic()
     try:
-        with pytest.raises(ConfigError, match="give --scenario"):
+        with pytest.raises(InputError, match="closed its camera stream before sending its scenario"):
             bridge_run._scenario(cam, None)
         assert time.monotonic() - t0 < 10.0
     finally:
         thread.join(5.0)
+        cam.close()
+        server.close()
+
+
+def test_a_socket_connected_to_itself_is_not_taken_for_the_emulator(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # Retrying a loopback port in the ephemeral range before anything listens there can connect the
+    # socket to itself (TCP simultaneous open; about 1 in 70 sequences of 200 retries on Linux). Such a
+    # socket held the emulator's port and the bridge then waited for a scenario that never came. Here the
+    # first attempt is made to connect to itself; the source must drop it and reach the real server.
+    server = FrameServer()
+    real = socket.create_connection
+    calls = []
+
+    def first_to_itself(address, timeout=None):  # type: ignore[no-untyped-def]
+        calls.append(address)
+        if len(calls) == 1:
+            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            s.bind(("127.0.0.1", 0))
+            s.connect(s.getsockname())
+            assert s.getsockname() == s.getpeername()
+            return s
+        return real(address, timeout=timeout)
+
+    monkeypatch.setattr(socket, "create_connection", first_to_itself)
+    cam = SocketCameraSource("127.0.0.1", server.port)
+    try:
+        assert len(calls) == 2 and cam.open
+        assert cam._sock is not None and cam._sock.getpeername()[1] == server.port
+    finally:
         cam.close()
         server.close()

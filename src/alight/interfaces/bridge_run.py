@@ -128,6 +128,12 @@ def _scenario(cam: CameraSource, path: str | Path | None) -> Scenario:
                 return Scenario.model_validate(cam.scenario)
             except ValueError as err:
                 raise InputError(f"bridge: the emulator's scenario is invalid ({err})") from None
+        if not cam.open:
+            raise InputError("bridge: the emulator closed its camera stream before sending its scenario")
+        raise InputError(
+            f"bridge: the emulator sent no scenario within {EMULATOR_SCENARIO_WAIT_S:g} s of its camera"
+            " stream opening"
+        )
     raise ConfigError("bridge: give --scenario (the emulated autopilot sends its own; this source did not)")
 
 

@@ -158,6 +158,13 @@ class FrameServer:
         self._listen.close()
 
 
+def _connected_to_itself(sock: socket.socket) -> bool:
+    try:
+        return bool(sock.getsockname() == sock.getpeername())
+    except OSError:
+        return False
+
+
 class SocketCameraSource:
     """The bridge's end of the emulated autopilot's camera stream (``tcp:HOST:PORT``).
 
@@ -171,7 +178,14 @@ class SocketCameraSource:
         deadline = time.monotonic() + connect_timeout_s
         while True:
             try:
-                self._sock: socket.socket | None = socket.create_connection((host, port), timeout=1.0)
+                sock = socket.create_connection((host, port), timeout=1.0)
+                if _connected_to_itself(sock):
+                    # Retrying a loopback port in the ephemeral range before the emulator listens can
+                    # pick that same port as the source: TCP's simultaneous open then connects the
+                    # socket to itself, which holds the port the emulator is about to bind.
+                    sock.close()
+                    raise ConnectionRefusedError("connected to itself; the emulator is not listening yet")
+                self._sock: socket.socket | None = sock
                 break
             except OSError as err:
                 if time.monotonic() > deadline:
