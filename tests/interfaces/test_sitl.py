@@ -20,8 +20,10 @@ from tests_interfaces_ports import free_port_pair  # noqa: E402
 
 from alight.airframe import DEFAULT_AIRFRAME  # noqa: E402
 from alight.airframes import load_airframe  # noqa: E402
+from alight.errors import InputError  # noqa: E402
 from alight.evaluation.world import World  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
+from alight.interfaces.camera_source import SocketCameraSource  # noqa: E402
 from alight.interfaces.sitl import (  # noqa: E402
     EmulatedAutopilot,
     FlightMode,
@@ -176,6 +178,43 @@ def test_offboard_rules_and_loss_failsafe_within_com_of_loss_t() -> None:
     k = int(np.searchsorted(log["t"], failsafe[0]["t"]))
     assert log["p_WB"][k, 2] > 1.0
     assert np.linalg.norm(log["p_WB"][-1] - log["p_WB"][k]) < 0.5
+
+
+def test_a_companion_on_the_camera_stream_has_the_warm_up_allowance_for_its_heartbeat() -> None:
+    # alight bridge opens the camera stream (to read the scenario), then compiles its kernels before its
+    # first HEARTBEAT. Scaled down: 0.3 s for a companion that has not shown itself, 1.5 s once it has.
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 2.0, "seed": 0})
+    config = {"lockstep": False, "wait_for_peer_s": 0.3, "wait_for_warm_up_s": 1.5}
+    port = free_port_pair()
+    ap = EmulatedAutopilot(scenario, SitlConfig(port=port, **config))
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(InputError, match=r"no companion HEARTBEAT on udp 127\.0\.0\.1:\d+ within 0\.3 s"):
+            ap._wait_for_peer()
+        assert time.monotonic() - t0 < 1.0
+        cam = SocketCameraSource("127.0.0.1", port + 1)
+        client = Client(port)
+        beat = threading.Timer(0.8, lambda: client.conn.mav.heartbeat_send(18, 8, 0, 0, 0))
+        beat.start()
+        t0 = time.monotonic()
+        ap._wait_for_peer()  # the HEARTBEAT comes after 0.8 s: past 0.3 s, inside the allowance
+        assert ap.peer_seen and 0.8 <= time.monotonic() - t0 < 1.5
+        beat.join()
+        cam.close()
+        client.conn.close()
+    finally:
+        ap.close()
+    port = free_port_pair()
+    ap = EmulatedAutopilot(scenario, SitlConfig(port=port, **config))
+    cam = SocketCameraSource("127.0.0.1", port + 1)
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(InputError, match="camera stream but sent no HEARTBEAT .* within 1.5 s"):
+            ap._wait_for_peer()
+        assert 1.5 <= time.monotonic() - t0 < 3.0
+    finally:
+        cam.close()
+        ap.close()
 
 
 def test_ardupilot_guided_stops_after_guid_timeout_and_stays_guided() -> None:

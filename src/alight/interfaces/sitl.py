@@ -218,6 +218,11 @@ class SitlConfig:
     """Wall time to wait for a period's acknowledgement before running free."""
     wait_for_peer_s: float = 60.0
     """Wall time to wait for the companion's first HEARTBEAT; the world starts when it arrives."""
+    wait_for_warm_up_s: float = 600.0
+    """Once a companion has opened the camera stream, the wall time it has to send its first HEARTBEAT:
+    ``alight bridge`` reads the scenario from the stream and compiles its pipeline's kernels before it
+    takes the link, which takes minutes on a cold numba cache with several processes to a core (60 s was
+    too short for four emulator-bridge pairs started together on 2 cores)."""
     offboard_loss_s: float | None = None
     """COM_OF_LOSS_T (PX4, default 1 s) or GUID_TIMEOUT (ArduPilot, default 3 s); None: the flavour's."""
     offboard_min_stream_s: float = 1.0
@@ -783,16 +788,31 @@ class EmulatedAutopilot:
     def _wait_satisfied(self) -> bool:
         return self.peer_lockstep and self.ack_t >= self.world.t - 1e-6
 
+    def _wait_for_peer(self) -> None:
+        """Return when the companion's first HEARTBEAT has arrived: within ``wait_for_peer_s``, or within
+        ``wait_for_warm_up_s`` of its opening the camera stream (it is there, compiling)."""
+        cfg = self.config
+        wall0 = time.monotonic()
+        stream_t: float | None = None
+        while not self.peer_seen:
+            now = time.monotonic()
+            if stream_t is None and self.frames.connected:
+                stream_t = now
+            where = f"udp {cfg.host}:{cfg.port}"
+            if stream_t is None and now - wall0 > cfg.wait_for_peer_s:
+                raise InputError(f"sitl: no companion HEARTBEAT on {where} within {cfg.wait_for_peer_s:g} s")
+            if stream_t is not None and now - stream_t > cfg.wait_for_warm_up_s:
+                raise InputError(
+                    f"sitl: the companion opened the camera stream but sent no HEARTBEAT on {where} within"
+                    f" {cfg.wait_for_warm_up_s:g} s"
+                )
+            self._poll(0.1)
+
     def run(self) -> dict[str, Any]:
         """Serve until the mission ends; returns the verdict (also sent to the peer)."""
         cfg = self.config
         self.world.warm_up()
-        wall0 = time.monotonic()
-        while not self.peer_seen:
-            if time.monotonic() - wall0 > cfg.wait_for_peer_s:
-                where = f"udp {cfg.host}:{cfg.port}"
-                raise InputError(f"sitl: no companion HEARTBEAT on {where} within {cfg.wait_for_peer_s:g} s")
-            self._poll(0.1)
+        self._wait_for_peer()
         self._event("start")
         wall_start = time.monotonic()
         every_log = 4
