@@ -31,25 +31,38 @@ def _env() -> dict[str, str]:
 def test_sitl_and_bridge_land(tmp_path: Path) -> None:
     cases = [(STRAIGHT, seed, ["--mode", "offboard"]) for seed in (1, 2, 3)]
     cases.append((PRECLAND, 3, ["--mode", "landing-target"]))
-    procs = []
-    for scenario, seed, mode in cases:
-        port = free_port_pair()
-        out = tmp_path / f"{scenario.stem}_{seed}"
-        cli = [sys.executable, "-m", "alight.cli"]
-        sitl = subprocess.Popen(
-            [*cli, "sitl", str(scenario), "--port", str(port), "--seed", str(seed)],
-            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )  # fmt: skip
-        bridge = subprocess.Popen(
-            [*cli, "bridge", "--connect", f"udp:127.0.0.1:{port}", "--out", str(out), "--arm", *mode],
-            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )  # fmt: skip
-        procs.append((out, sitl, bridge))
-    for out, sitl, bridge in procs:
-        b_out, b_err = bridge.communicate(timeout=900)
-        s_out, s_err = sitl.communicate(timeout=60)
-        assert bridge.returncode == 0, b_err
-        assert sitl.returncode == 0, s_err
+    procs: list[tuple[Path, subprocess.Popen[str], subprocess.Popen[str]]] = []
+    outputs: list[tuple[Path, subprocess.Popen[str], str, subprocess.Popen[str], str]] = []
+    try:
+        for scenario, seed, mode in cases:
+            port = free_port_pair()
+            out = tmp_path / f"{scenario.stem}_{seed}"
+            cli = [sys.executable, "-m", "alight.cli"]
+            sitl = subprocess.Popen(
+                [*cli, "sitl", str(scenario), "--port", str(port), "--seed", str(seed)],
+                env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            )  # fmt: skip
+            bridge = subprocess.Popen(
+                [*cli, "bridge", "--connect", f"udp:127.0.0.1:{port}", "--out", str(out), "--arm", *mode],
+                env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            )  # fmt: skip
+            procs.append((out, sitl, bridge))
+        for out, sitl, bridge in procs:
+            _, b_err = bridge.communicate(timeout=900)
+            _, s_err = sitl.communicate(timeout=60)
+            outputs.append((out, bridge, b_err, sitl, s_err))
+    finally:
+        # A failure must not leave processes running, nor pipes for the garbage collector to report as
+        # unclosed in whichever test runs next.
+        for _, sitl, bridge in procs:
+            for proc in (bridge, sitl):
+                if proc.poll() is None:
+                    proc.kill()
+                if proc.stdout is not None and not proc.stdout.closed:
+                    proc.communicate()
+    for out, bridge, b_err, sitl, s_err in outputs:
+        assert bridge.returncode == 0, f"bridge: {b_err}\nsitl: {s_err}"
+        assert sitl.returncode == 0, f"sitl: {s_err}\nbridge: {b_err}"
         result = json.loads((out / "result.json").read_text())
         assert (out / "report.html").is_file() and (out / "log.npz").is_file()
         assert result["outcome"] == "landed", (out.name, result["outcome"], result["bridge"]["events"][-5:])
