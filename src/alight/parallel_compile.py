@@ -1,0 +1,383 @@
+"""Compile a preset's numba kernels in parallel processes before its warm-up flight (issue 18).
+
+A cold warm-up compiles about 200 signatures, one at a time, in one process: numba's compiler is single
+threaded (98 s of CPU for the alight preset on a slow 2-core machine). The kernels that a warm-up flight
+calls from Python, its *outermost* kernels, are listed in ``warmup_kernels.json`` with their signatures,
+the presets whose flights call them, and the CPU time each compile took. When numba's cache lacks
+entries of that list, :func:`compile_ahead` splits the missing ones across helper processes (the longest
+compile first, onto the least-loaded helper) that compile them with ``Dispatcher.compile`` and so write
+numba's cache. The warm-up flight then loads them in milliseconds.
+
+Why helper processes and not threads: numba holds a global compiler lock. A kernel's callees are compiled
+with it, so two helpers may both compile a small shared callee: the price of not sharing a compiler.
+All signatures of one kernel go to the same helper (two processes writing one cache index could each drop
+the other's entry).
+
+The list is data derived from the code. ``python -m alight.parallel_compile --write`` flies each preset's
+warm-up on an empty cache and records the kernels called from Python, and a test checks that the list is
+what the warm-up flights call. A stale or missing list costs time, never correctness: whatever the
+helpers did not compile, the flight compiles, as it always did. So every failure here (no list, a numba
+that changed its internals, a helper that died) falls back to that, with a note in the report.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+MANIFEST = Path(__file__).with_name("warmup_kernels.json")
+"""The outermost kernels of each preset's warm-up flight (see the module docstring)."""
+
+MAX_HELPERS = 8
+"""Most helper processes: each holds LLVM and the package (about 300 MB while compiling)."""
+
+HELPER_TIMEOUT_S = 1800.0
+"""A helper still compiling after this is killed; the flight compiles what it left."""
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """One outermost kernel signature of the list."""
+
+    module: str
+    qualname: str
+    signature: str
+    """``repr`` of the argument types' tuple, e.g. ``(Array(float64, 1, 'C', False, aligned=True),)``."""
+    presets: tuple[str, ...]
+    compile_s: float
+    """CPU time its compile took when the list was written (its callees included), for load balancing."""
+
+    @property
+    def name(self) -> str:
+        return f"{self.module}.{self.qualname}"
+
+
+@dataclass
+class CompileAheadReport:
+    helpers: int = 0
+    """Helper processes started (0: nothing was missing, or the list could not be used)."""
+    kernels: int = 0
+    """Outermost signatures handed to the helpers."""
+    wall_s: float = 0.0
+    cpu_s: float = 0.0
+    """CPU time the helpers spent compiling (their process time, as each reported it)."""
+    failed: list[str] = field(default_factory=list)
+    """One line per signature or helper that failed (the flight compiles those)."""
+    spans: list[tuple[float, float]] = field(default_factory=list)
+    """Each helper's (time it had its share, time it finished), ``time.time()`` seconds."""
+    note: str = ""
+    """Why nothing was compiled ahead, when nothing was."""
+
+
+def read_manifest(path: Path = MANIFEST) -> list[Kernel]:
+    """The list; raises ``ValueError`` on a file that is not one."""
+    data = json.loads(path.read_text(encoding="utf-8"))
+    try:
+        return [
+            Kernel(
+                str(k["module"]),
+                str(k["qualname"]),
+                str(k["signature"]),
+                tuple(str(p) for p in k["presets"]),
+                float(k["compile_s"]),
+            )
+            for k in data["kernels"]
+        ]
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"{path}: not a kernel list ({err!r})") from None
+
+
+def _dispatcher(kernel: Kernel) -> Any:
+    obj: Any = importlib.import_module(kernel.module)
+    for part in kernel.qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def parse_signature(text: str) -> tuple[Any, ...]:
+    """The numba argument types written by ``repr`` (numba's types print as their constructors)."""
+    from numba.core import types
+
+    namespace = {name: getattr(types, name) for name in dir(types) if not name.startswith("_")}
+    value = eval(text, {"__builtins__": {}}, namespace)  # noqa: S307  (our own list, no builtins)
+    if not isinstance(value, tuple):
+        raise ValueError(f"not a tuple of numba types: {text}")
+    return value
+
+
+def _cached(kernel: Kernel) -> bool:
+    """Whether numba's cache holds this signature (through numba's cache index; its internals, so any
+    surprise counts as cached: the safe answer starts no helper)."""
+    try:
+        disp = _dispatcher(kernel)
+        sig = parse_signature(kernel.signature)
+        index = disp._cache._cache_file._load_index()
+        return any(key[0] == sig for key in index)
+    except Exception:  # noqa: BLE001
+        return True
+
+
+def _balanced(kernels: Sequence[Kernel], n: int) -> list[list[Kernel]]:
+    """``n`` shares, each kernel's signatures together: the longest compile first, onto the share with
+    the least work so far (the LPT rule, within 4/3 of the best split)."""
+    groups: dict[str, list[Kernel]] = {}
+    for k in kernels:
+        groups.setdefault(k.name, []).append(k)
+    order = sorted(groups.values(), key=lambda g: (-sum(k.compile_s for k in g), g[0].name))
+    shares: list[list[Kernel]] = [[] for _ in range(n)]
+    loads = [0.0] * n
+    for g in order:
+        i = loads.index(min(loads))
+        shares[i].extend(g)
+        loads[i] += sum(k.compile_s for k in g)
+    return [s for s in shares if s]
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def _exclusive(directory: Path) -> Iterator[None]:
+    """Hold a lock file in the cache directory: of two processes warming up together (a campaign's
+    sandboxes), one compiles ahead and the other then finds the cache filled."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no lock; at worst both compile, as without compiling ahead
+        yield
+        return
+    directory.mkdir(parents=True, exist_ok=True)
+    with open(directory / "compile-ahead.lock", "a+b") as f:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+
+
+def compile_ahead(
+    presets: Iterable[str], *, max_helpers: int | None = None, kernels_file: Path = MANIFEST
+) -> CompileAheadReport:
+    """Compile the listed kernels of ``presets`` that numba's cache lacks, in parallel helper processes
+    (at most one per core, and ``max_helpers``). Returns at once when there is nothing to do or one core
+    only. ``kernels_file``: the list to use."""
+    report = CompileAheadReport()
+    wanted = set(presets)
+    try:
+        listed = [k for k in read_manifest(kernels_file) if wanted & set(k.presets)]
+    except (OSError, ValueError) as err:
+        report.note = f"no kernel list ({err})"
+        return report
+    n_max = min(_cores(), MAX_HELPERS, MAX_HELPERS if max_helpers is None else max_helpers)
+    if n_max < 2:
+        report.note = "one core: compiling ahead would gain nothing"
+        return report
+    if all(_cached(k) for k in listed):
+        return report
+    from alight.numba_cache import cache_dir
+
+    with _exclusive(cache_dir()[0]):
+        missing = [k for k in listed if not _cached(k)]
+        if len(missing) < 2:
+            return report
+        shares = _balanced(missing, min(n_max, len(missing)))
+        t0 = time.perf_counter()
+        _run_helpers(shares, report)
+        report.wall_s = time.perf_counter() - t0
+        report.kernels = len(missing)
+    return report
+
+
+def _run_helpers(shares: list[list[Kernel]], report: CompileAheadReport) -> None:
+    env = dict(os.environ)
+    src = str(Path(__file__).resolve().parents[1])  # the helpers import this copy of alight
+    env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
+    with tempfile.TemporaryDirectory(prefix="alight-compile-ahead-") as tmp:
+        procs = []
+        for i, share in enumerate(shares):
+            # Each helper's share in a file of its own, all written before any helper is waited for.
+            path = Path(tmp) / f"share{i}.json"
+            path.write_text(json.dumps([k.__dict__ for k in share]), encoding="utf-8")
+            try:
+                proc = subprocess.Popen(
+                    [sys.executable, "-m", "alight.parallel_compile", "--helper", str(path)],
+                    stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                    env=env,
+                )  # fmt: skip
+            except OSError as start_err:
+                report.failed.append(f"cannot start a helper ({start_err})")
+                continue
+            procs.append(proc)
+        _collect(procs, report)
+
+
+def _collect(procs: list[subprocess.Popen[str]], report: CompileAheadReport) -> None:
+    report.helpers = len(procs)
+    try:
+        _read_helpers(procs, report)
+    finally:  # interrupted (Ctrl-C): no helper outlives us
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+
+
+def _read_helpers(procs: list[subprocess.Popen[str]], report: CompileAheadReport) -> None:
+    deadline = time.monotonic() + HELPER_TIMEOUT_S
+    for proc in procs:
+        try:
+            out, err = proc.communicate(timeout=max(1.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+            report.failed.append(f"a helper was still compiling after {HELPER_TIMEOUT_S:g} s")
+            continue
+        try:
+            done = json.loads(out.strip().splitlines()[-1])
+            results = done["results"]
+            report.spans.append((float(done["read_at"]), float(done["done_at"])))
+        except (ValueError, IndexError, KeyError, TypeError):
+            last = (err.strip().splitlines() or ["no output"])[-1]
+            report.failed.append(f"a helper ended with status {proc.returncode}: {last}")
+            continue
+        for r in results:
+            report.cpu_s += float(r["cpu_s"])
+            if r["error"]:
+                report.failed.append(f"{r['name']}: {r['error']}")
+
+
+def _helper(kernels: list[Kernel]) -> list[dict[str, Any]]:
+    """Compile ``kernels`` into numba's cache (in a helper process)."""
+    results = []
+    for k in kernels:
+        t0 = time.process_time()
+        error = ""
+        try:
+            _dispatcher(k).compile(parse_signature(k.signature))
+        except Exception as err:  # noqa: BLE001  (reported; the flight compiles it)
+            error = f"{type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"
+        results.append({"name": k.name, "cpu_s": time.process_time() - t0, "error": error})
+    return results
+
+
+# -- writing the list ------------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def python_calls() -> Iterator[list[tuple[str, str, str, float]]]:
+    """Record each numba kernel signature first called (or compiled with ``.compile``) from Python while
+    the block runs, as ``(module, qualname, signature, CPU seconds of the call)``; what a kernel calls is
+    compiled inside its caller's compile and is not recorded. How: a Python call that finds no compiled
+    signature enters the dispatcher's ``_compile_for_args`` (which loads it from the cache or compiles
+    it), and a controller that skips the dispatcher calls ``Dispatcher.compile`` itself; both are wrapped,
+    and only the outermost entry counts. These are numba's internals, so this is for writing and checking
+    the list, never for flying."""
+    import threading
+
+    from numba.core import dispatcher
+
+    Dispatcher: Any = dispatcher.Dispatcher  # noqa: N806  (numba's stubs lack its internals)
+    calls: list[tuple[str, str, str, float]] = []
+    depth = threading.local()
+    originals = {name: getattr(Dispatcher, name) for name in ("_compile_for_args", "compile")}
+
+    def wrap(original: Any) -> Any:
+        def recording(self: Any, *args: Any, **kws: Any) -> Any:
+            level = getattr(depth, "n", 0)
+            before = set(self.signatures)
+            t0 = time.process_time()
+            depth.n = level + 1
+            try:
+                return original(self, *args, **kws)
+            finally:
+                depth.n = level
+                fn = self.py_func
+                if level == 0 and fn.__module__.startswith("alight."):
+                    dt = time.process_time() - t0
+                    for sig in set(self.signatures) - before:
+                        calls.append((fn.__module__, fn.__qualname__, repr(sig), dt))
+
+        return recording
+
+    for name, original in originals.items():
+        setattr(Dispatcher, name, wrap(original))
+    try:
+        yield calls
+    finally:
+        for name, original in originals.items():
+            setattr(Dispatcher, name, original)
+
+
+def _record_preset(preset: str) -> list[tuple[str, str, str, float]]:
+    """(In a process with an empty cache) fly ``preset``'s warm-up and return its outermost kernels."""
+    from alight.warmup import warm_up
+
+    with python_calls() as calls:
+        warm_up([preset], compile_first=False)
+    return calls
+
+
+def write_manifest(presets: Sequence[str], path: Path = MANIFEST) -> list[Kernel]:
+    """Fly each preset's warm-up in a fresh process on an empty numba cache and write the list."""
+    found: dict[tuple[str, str, str], Kernel] = {}
+    for preset in presets:
+        with tempfile.TemporaryDirectory(prefix="alight-manifest-") as cache:
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+            out = subprocess.run(
+                [sys.executable, "-m", "alight.parallel_compile", "--record", preset],
+                env=env, capture_output=True, text=True, check=True,
+            )  # fmt: skip
+        for module, qualname, sig, cpu_s in json.loads(out.stdout.strip().splitlines()[-1]):
+            key = (module, qualname, sig)
+            old = found.get(key)
+            presets_of = (*old.presets, preset) if old else (preset,)
+            found[key] = Kernel(module, qualname, sig, presets_of, max(cpu_s, old.compile_s if old else 0.0))
+    kernels = sorted(found.values(), key=lambda k: (k.module, k.qualname, k.signature))
+    data = {
+        "about": "Outermost numba kernels of each preset's warm-up flight; written by python -m "
+        "alight.parallel_compile --write, checked by tests/test_parallel_compile.py.",
+        "kernels": [
+            {**k.__dict__, "presets": list(k.presets), "compile_s": round(k.compile_s, 2)} for k in kernels
+        ],
+    }
+    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    return kernels
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if args[:1] == ["--helper"] and len(args) == 2:
+        share = Path(args[1]).read_text(encoding="utf-8")
+        read_at = time.time()
+        kernels = [Kernel(**{**d, "presets": tuple(d["presets"])}) for d in json.loads(share)]
+        results = _helper(kernels)
+        print(json.dumps({"read_at": read_at, "done_at": time.time(), "results": results}))
+        return 0
+    if args[:1] == ["--record"] and len(args) == 2:
+        print(json.dumps(_record_preset(args[1])))
+        return 0
+    if args[:1] == ["--write"]:
+        from alight.mission.presets import PRESETS
+
+        kernels = write_manifest(args[1:] or sorted(PRESETS))
+        print(f"{MANIFEST}: {len(kernels)} kernel signatures")
+        return 0
+    print("usage: python -m alight.parallel_compile --write [PRESET ...]", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,149 @@
+"""Compiling ahead in parallel processes (issue 18): the kernel list agrees with what the warm-up flights
+call, the shares are balanced as worked by hand, helpers fill an empty cache, and every failure falls
+back to the flight's own compile."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from alight.parallel_compile import MANIFEST, Kernel, _balanced, compile_ahead, parse_signature, read_manifest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _env(**extra: str) -> dict[str, str]:
+    env = dict(os.environ, **extra)
+    env["PYTHONPATH"] = str(ROOT / "src") + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def test_the_kernel_list_is_what_each_presets_warm_up_flight_calls_from_python() -> None:
+    # One process flies every preset's warm-up in turn and records each kernel signature the first time
+    # Python calls it (a later preset that calls it again is not seen, so each recorded signature must
+    # list at least the preset that first called it). Nothing recorded may be missing from the list, and
+    # nothing listed may be stale. Regenerate with: python -m alight.parallel_compile --write
+    presets = sorted({p for k in read_manifest() for p in k.presets})
+    script = textwrap.dedent(f"""
+        import json
+        from alight.parallel_compile import python_calls
+        from alight.warmup import warm_up
+        seen = {{}}
+        with python_calls() as calls:
+            for preset in {presets!r}:
+                n = len(calls)
+                warm_up([preset], compile_first=False)
+                seen[preset] = [c[:3] for c in calls[n:]]
+        print(json.dumps(seen))
+    """)
+    out = subprocess.run(
+        [sys.executable, "-c", script], env=_env(), capture_output=True, text=True, timeout=1800
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    listed = {(k.module, k.qualname, k.signature): k for k in read_manifest()}
+    recorded = set()
+    for preset, calls in seen.items():
+        for call in calls:
+            key = tuple(call)
+            assert key in listed, f"{preset} calls {key[0]}.{key[1]}{key[2]}, not in {MANIFEST.name}"
+            assert preset in listed[key].presets, (key, preset)
+            recorded.add(key)
+    assert set(listed) == recorded, f"stale in {MANIFEST.name}: {sorted(set(listed) - recorded)}"
+
+
+def test_every_listed_signature_reads_back_as_written() -> None:
+    for k in read_manifest():
+        assert repr(parse_signature(k.signature)) == k.signature
+    with pytest.raises(NameError):
+        parse_signature("__import__('os').getcwd()")  # no builtins in the namespace
+    with pytest.raises(ValueError, match="not a tuple"):
+        parse_signature("float64")
+
+
+def _k(name: str, cost: float, sig: str = "(float64,)") -> Kernel:
+    return Kernel("m", name, sig, ("alight",), cost)
+
+
+def test_shares_longest_first_onto_the_least_loaded_and_a_kernels_signatures_together() -> None:
+    # Worked by hand, 2 shares: A5 -> s0 (5); B4 -> s1 (4); C3 -> s1 (7); D3 -> s0 (8); E (2 + 1,
+    # two signatures, 3 in all) -> s1 (10).
+    kernels = [_k("C", 3), _k("E", 2, "(int64,)"), _k("A", 5), _k("D", 3), _k("E", 1), _k("B", 4)]
+    shares = _balanced(kernels, 2)
+    names = [sorted({k.qualname for k in s}) for s in shares]
+    assert names == [["A", "D"], ["B", "C", "E"]]
+    assert sum(k.compile_s for k in shares[1]) == 10.0
+    assert _balanced(kernels[:1], 4) == [[kernels[0]]]  # no empty share
+
+
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def test_helpers_fill_an_empty_cache_and_a_filled_one_starts_none(tmp_path: Path) -> None:
+    # Two cheap kernels of the list, compiled by two helpers into an empty cache; then nothing is left
+    # to do. Run in a child process whose numba cache is the empty directory.
+    if _cores() < 2:
+        pytest.skip("one core: compile_ahead starts no helper, by design")
+    cheap = sorted((k for k in read_manifest() if "alight" in k.presets), key=lambda k: k.compile_s)[:2]
+    small = tmp_path / "kernels.json"
+    small.write_text(json.dumps({"kernels": [{**k.__dict__, "presets": list(k.presets)} for k in cheap]}))
+    # The same two kernels with a signature they cannot be compiled for: the helpers say so, one line each.
+    wrong = tmp_path / "wrong.json"
+    wrong.write_text(
+        json.dumps(
+            {
+                "kernels": [
+                    {**k.__dict__, "presets": list(k.presets), "signature": "(unicode_type,)"} for k in cheap
+                ]
+            }
+        )
+    )
+    script = textwrap.dedent(f"""
+        import json
+        from pathlib import Path
+        from alight.parallel_compile import _cached, compile_ahead, read_manifest
+        kernels = read_manifest(Path({str(small)!r}))
+        before = [_cached(k) for k in kernels]
+        first = compile_ahead(["alight"], max_helpers=2, kernels_file=Path({str(small)!r}))
+        after = [_cached(k) for k in kernels]
+        filled = compile_ahead(["alight"], max_helpers=2, kernels_file=Path({str(small)!r}))
+        second = compile_ahead(["alight"], max_helpers=2, kernels_file=Path({str(wrong)!r}))
+        print(json.dumps([before, first.helpers, first.kernels, first.failed, after, filled.helpers,
+                          second.helpers, second.failed, first.spans]))
+    """)
+    env = _env(NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    before, helpers, n, failed, after, filled, again, wrong_failed, spans = json.loads(
+        out.stdout.strip().splitlines()[-1]
+    )
+    assert before == [False, False] and (helpers, n, failed) == (2, 2, [])
+    assert after == [True, True] and filled == 0
+    # They ran at once: each had its share before either finished (a first version handed the second
+    # helper its share only once the first had ended, and compiled no faster than one process).
+    assert len(spans) == 2 and max(read for read, _ in spans) < min(done for _, done in spans)
+    assert again == 2 and len(wrong_failed) == 2
+    for line, k in zip(sorted(wrong_failed), sorted(cheap, key=lambda k: k.name), strict=True):
+        assert re.match(rf"{re.escape(k.name)}: \w*Error: \S", line), line  # e.g. numba's TypingError
+
+
+def test_a_missing_or_broken_list_and_a_bad_entry_fall_back_to_the_flight(tmp_path: Path) -> None:
+    none = compile_ahead(["alight"], kernels_file=tmp_path / "absent.json")
+    assert none.helpers == 0 and none.note.startswith("no kernel list")
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"kernels": [{"module": "x"}]}')
+    assert compile_ahead(["alight"], kernels_file=broken).note.startswith("no kernel list")
+    # A kernel that does not exist counts as cached (the safe answer): no helper is started for it.
+    bad = tmp_path / "bad.json"
+    entry = {"module": "alight.nowhere", "qualname": "k", "signature": "(float64,)", "presets": ["alight"]}
+    bad.write_text(json.dumps({"kernels": [{**entry, "compile_s": 1.0}, {**entry, "compile_s": 2.0}]}))
+    report = compile_ahead(["alight"], kernels_file=bad, max_helpers=2)
+    assert report.helpers == 0 and report.failed == []
