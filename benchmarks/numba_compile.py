@@ -10,7 +10,10 @@ is a fresh Python process with ``NUMBA_CACHE_DIR`` pointing to a new, empty dire
   signatures: its warm-up compiles them all, and the mission after it none.
 - ``presets``: for each preset (default all five), a process with its own empty cache flies the preset's
   warm-up (``alight.warmup.warm_up``, what ``alight fly`` and a campaign's sandbox run before any
-  mission's clock starts): the cold compile of that preset.
+  mission's clock starts): the cold compile of that preset. ``cold`` compiles in the flight alone
+  (``compile_first=False``); ``cold_parallel`` as ``alight fly`` does, the listed kernels first in
+  parallel helper processes (``alight.parallel_compile``; ``ahead`` says what they did: their CPU time
+  is in ``cpu_s``, not in ``compile_s``, which is this process's own).
 
 ``compile_s`` is the CPU time numba spent compiling (``alight.warmup.compile_meter``: outermost compiles
 only, cache loads excluded; CPU rather than wall time, so other work on the machine does not inflate it),
@@ -43,8 +46,12 @@ with compile_meter() as m:
         out = {"mission_wall_s": round(r["wall_time_s"], 2), "outcome": r["outcome"],
                "touchdown_error_m": r["touchdown_error_m"]}
     else:
-        rep = warm_up([arg])
+        rep = warm_up([arg], compile_first=what == "warmup_parallel")
         out = {"warmup_wall_s": round(rep.wall_s, 2)}
+        if rep.ahead is not None:
+            a = rep.ahead
+            out["ahead"] = {"helpers": a.helpers, "signatures": a.kernels, "wall_s": round(a.wall_s, 2),
+                            "cpu_s": round(a.cpu_s, 2), "failed": a.failed, "note": a.note}
 top = sorted(m.by_kernel.items(), key=lambda kv: -kv[1])[:10]
 out.update({"compile_s": round(m.compile_s, 2), "signatures": m.n_signatures,
             "top": {k: round(v, 2) for k, v in top}})
@@ -80,8 +87,10 @@ def main() -> None:
             out[label] = _child("scenario", scenario, cache)
     out["presets"] = {}
     for preset in presets:
-        with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
-            out["presets"][preset] = {"cold": _child("warmup", preset, cache)}
+        out["presets"][preset] = {}
+        for label, what in (("cold", "warmup"), ("cold_parallel", "warmup_parallel")):
+            with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
+                out["presets"][preset][label] = _child(what, preset, cache)
     print(json.dumps(out, indent=1))
 
 

@@ -78,9 +78,16 @@ def _warm_up_before_the_clock(preset: str) -> None:
     except Exception as err:  # the mission itself will say what is wrong; its compile then is on its clock
         print(f"warm-up ({preset}) failed, the mission's clock may hold the compile: {err}", file=sys.stderr)
         return
+    ahead = ""
+    if rep.ahead is not None and rep.ahead.helpers:
+        a = rep.ahead
+        ahead = (
+            f" in the flight, after {a.kernels} kernels in {a.helpers} parallel processes ({a.wall_s:.1f} s, "
+            f"{a.cpu_s:.1f} s CPU{f'; {len(a.failed)} left to the flight' if a.failed else ''})"
+        )
     print(
         f"warm-up ({preset}, before the mission's clock): {rep.wall_s:.2f} s, "
-        f"numba compiled {rep.n_signatures} signatures in {rep.compile_s:.2f} s CPU",
+        f"numba compiled {rep.n_signatures} signatures in {rep.compile_s:.2f} s CPU{ahead}",
         file=sys.stderr,
     )
 
