@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+import alight.parallel_compile as pc
 from alight.parallel_compile import MANIFEST, Kernel, _balanced, compile_ahead, parse_signature, read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -117,16 +118,18 @@ def test_helpers_fill_an_empty_cache_and_a_filled_one_starts_none(tmp_path: Path
         filled = compile_ahead(["alight"], max_helpers=2, kernels_file=Path({str(small)!r}))
         second = compile_ahead(["alight"], max_helpers=2, kernels_file=Path({str(wrong)!r}))
         print(json.dumps([before, first.helpers, first.kernels, first.failed, after, filled.helpers,
-                          second.helpers, second.failed, first.spans]))
+                          second.helpers, second.failed, first.spans, first.peak_mib]))
     """)
     env = _env(NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
-    before, helpers, n, failed, after, filled, again, wrong_failed, spans = json.loads(
+    before, helpers, n, failed, after, filled, again, wrong_failed, spans, peak_mib = json.loads(
         out.stdout.strip().splitlines()[-1]
     )
     assert before == [False, False] and (helpers, n, failed) == (2, 2, [])
     assert after == [True, True] and filled == 0
+    if sys.platform == "linux":
+        assert peak_mib > 50.0  # a helper says its peak memory (numba and LLVM alone hold more)
     # They ran at once: each had its share before either finished (a first version handed the second
     # helper its share only once the first had ended, and compiled no faster than one process).
     assert len(spans) == 2 and max(read for read, _ in spans) < min(done for _, done in spans)
@@ -147,3 +150,17 @@ def test_a_missing_or_broken_list_and_a_bad_entry_fall_back_to_the_flight(tmp_pa
     bad.write_text(json.dumps({"kernels": [{**entry, "compile_s": 1.0}, {**entry, "compile_s": 2.0}]}))
     report = compile_ahead(["alight"], kernels_file=bad, max_helpers=2)
     assert report.helpers == 0 and report.failed == []
+
+
+def test_helpers_one_per_core_bounded_by_the_cap_and_the_memory(monkeypatch: pytest.MonkeyPatch) -> None:
+    per = pc.HELPER_MEMORY_MIB
+    monkeypatch.setattr(pc, "_cores", lambda: 16)
+    monkeypatch.setattr(pc, "_available_mib", lambda: None)
+    assert pc.helper_count() == pc.MAX_HELPERS == 8  # the cap
+    assert pc.helper_count(3) == 3
+    monkeypatch.setattr(pc, "_available_mib", lambda: 2.5 * per)
+    assert pc.helper_count() == 2  # what the memory holds
+    monkeypatch.setattr(pc, "_available_mib", lambda: 1.5 * per)
+    monkeypatch.setattr(pc, "_cores", lambda: 4)
+    report = compile_ahead(["alight"])
+    assert report.helpers == 0 and "memory for one helper" in report.note

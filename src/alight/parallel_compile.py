@@ -39,7 +39,11 @@ MANIFEST = Path(__file__).with_name("warmup_kernels.json")
 """The outermost kernels of each preset's warm-up flight (see the module docstring)."""
 
 MAX_HELPERS = 8
-"""Most helper processes: each holds LLVM and the package (about 300 MB while compiling)."""
+"""Most helper processes."""
+
+HELPER_MEMORY_MIB = 400.0
+"""Memory to count per helper when bounding their number by the memory available: a helper holds the
+package and LLVM (its peak was 373 MiB compiling half of the alight preset's list, 2026-11-29)."""
 
 HELPER_TIMEOUT_S = 1800.0
 """A helper still compiling after this is killed; the flight compiles what it left."""
@@ -64,6 +68,8 @@ class Kernel:
 
 @dataclass
 class CompileAheadReport:
+    """What :func:`compile_ahead` did."""
+
     helpers: int = 0
     """Helper processes started (0: nothing was missing, or the list could not be used)."""
     kernels: int = 0
@@ -75,6 +81,8 @@ class CompileAheadReport:
     """One line per signature or helper that failed (the flight compiles those)."""
     spans: list[tuple[float, float]] = field(default_factory=list)
     """Each helper's (time it had its share, time it finished), ``time.time()`` seconds."""
+    peak_mib: float = 0.0
+    """The largest peak resident memory of a helper (MiB)."""
     note: str = ""
     """Why nothing was compiled ahead, when nothing was."""
 
@@ -143,6 +151,38 @@ def _balanced(kernels: Sequence[Kernel], n: int) -> list[list[Kernel]]:
     return [s for s in shares if s]
 
 
+def _available_mib() -> float | None:
+    """MemAvailable of /proc/meminfo (MiB); None where there is none (not Linux)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def helper_count(max_helpers: int | None = None) -> int:
+    """Helpers to start: one per core, at most ``MAX_HELPERS`` and ``max_helpers``, and no more than the
+    available memory holds at ``HELPER_MEMORY_MIB`` each."""
+    n = min(_cores(), MAX_HELPERS, MAX_HELPERS if max_helpers is None else max_helpers)
+    available = _available_mib()
+    if available is not None:
+        n = min(n, int(available // HELPER_MEMORY_MIB))
+    return n
+
+
+def _peak_mib() -> float:
+    """This process's peak resident memory (MiB); 0 where the platform does not say."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return 0.0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes on macOS, KiB on Linux
+
+
 def _cores() -> int:
     try:
         return len(os.sched_getaffinity(0))
@@ -181,9 +221,9 @@ def compile_ahead(
     except (OSError, ValueError) as err:
         report.note = f"no kernel list ({err})"
         return report
-    n_max = min(_cores(), MAX_HELPERS, MAX_HELPERS if max_helpers is None else max_helpers)
+    n_max = helper_count(max_helpers)
     if n_max < 2:
-        report.note = "one core: compiling ahead would gain nothing"
+        report.note = "one core, or memory for one helper only: compiling ahead would gain nothing"
         return report
     if all(_cached(k) for k in listed):
         return report
@@ -249,6 +289,7 @@ def _read_helpers(procs: list[subprocess.Popen[str]], report: CompileAheadReport
             done = json.loads(out.strip().splitlines()[-1])
             results = done["results"]
             report.spans.append((float(done["read_at"]), float(done["done_at"])))
+            report.peak_mib = max(report.peak_mib, float(done["max_rss_mib"]))
         except (ValueError, IndexError, KeyError, TypeError):
             last = (err.strip().splitlines() or ["no output"])[-1]
             report.failed.append(f"a helper ended with status {proc.returncode}: {last}")
@@ -364,7 +405,8 @@ def main(argv: list[str] | None = None) -> int:
         read_at = time.time()
         kernels = [Kernel(**{**d, "presets": tuple(d["presets"])}) for d in json.loads(share)]
         results = _helper(kernels)
-        print(json.dumps({"read_at": read_at, "done_at": time.time(), "results": results}))
+        done = {"read_at": read_at, "done_at": time.time(), "results": results, "max_rss_mib": _peak_mib()}
+        print(json.dumps(done))
         return 0
     if args[:1] == ["--record"] and len(args) == 2:
         print(json.dumps(_record_preset(args[1])))
