@@ -1,7 +1,7 @@
 """Compile a preset's numba kernels in parallel processes before its warm-up flight (issue 18).
 
 A cold warm-up compiles about 200 signatures, one at a time, in one process: numba's compiler is single
-threaded (98 s of CPU for the alight preset on a slow 2-core machine). The kernels that a warm-up flight
+threaded (67-98 s of CPU for the alight preset on 2-core machines). The kernels that a warm-up flight
 calls from Python, its *outermost* kernels, are listed in ``warmup_kernels.json`` with their signatures,
 the presets whose flights call them, and the CPU time each compile took. When numba's cache lacks
 entries of that list, :func:`compile_ahead` splits the missing ones across helper processes (the longest
@@ -199,8 +199,13 @@ def _exclusive(directory: Path) -> Iterator[None]:
     except ImportError:  # Windows: no lock; at worst both compile, as without compiling ahead
         yield
         return
-    directory.mkdir(parents=True, exist_ok=True)
-    with open(directory / "compile-ahead.lock", "a+b") as f:
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        f = open(directory / "compile-ahead.lock", "a+b")  # noqa: SIM115  (held across the yield)
+    except OSError:  # a cache directory we cannot write to: numba will not cache there either
+        yield
+        return
+    with f:
         fcntl.flock(f.fileno(), fcntl.LOCK_EX)
         try:
             yield
@@ -235,7 +240,10 @@ def compile_ahead(
             return report
         shares = _balanced(missing, min(n_max, len(missing)))
         t0 = time.perf_counter()
-        _run_helpers(shares, report)
+        try:
+            _run_helpers(shares, report)
+        except OSError as err:  # no temporary directory, no process to start: the flight compiles
+            report.failed.append(f"compiling ahead stopped: {err}")
         report.wall_s = time.perf_counter() - t0
         report.kernels = len(missing)
     return report
@@ -246,11 +254,13 @@ def _run_helpers(shares: list[list[Kernel]], report: CompileAheadReport) -> None
     src = str(Path(__file__).resolve().parents[1])  # the helpers import this copy of alight
     env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
     with tempfile.TemporaryDirectory(prefix="alight-compile-ahead-") as tmp:
-        procs = []
-        for i, share in enumerate(shares):
-            # Each helper's share in a file of its own, all written before any helper is waited for.
-            path = Path(tmp) / f"share{i}.json"
+        # Each helper's share in a file of its own, all written before any helper starts (and so before
+        # any is waited for).
+        paths = [Path(tmp) / f"share{i}.json" for i in range(len(shares))]
+        for path, share in zip(paths, shares, strict=True):
             path.write_text(json.dumps([k.__dict__ for k in share]), encoding="utf-8")
+        procs = []
+        for path in paths:
             try:
                 proc = subprocess.Popen(
                     [sys.executable, "-m", "alight.parallel_compile", "--helper", str(path)],
