@@ -84,14 +84,10 @@ def test_shares_longest_first_onto_the_least_loaded_and_a_kernels_signatures_tog
     assert _balanced(kernels[:1], 4) == [[kernels[0]]]  # no empty share
 
 
-def _cores() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-
-
 def test_helpers_fill_an_empty_cache_and_a_filled_one_starts_none(tmp_path: Path) -> None:
     # Two cheap kernels of the list, compiled by two helpers into an empty cache; then nothing is left
     # to do. Run in a child process whose numba cache is the empty directory.
-    if _cores() < 2:
+    if pc._cores() < 2:
         pytest.skip("one core: compile_ahead starts no helper, by design")
     cheap = sorted((k for k in read_manifest() if "alight" in k.presets), key=lambda k: k.compile_s)[:2]
     small = tmp_path / "kernels.json"

@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from alight.process_stats import max_rss_mib
+
 MANIFEST = Path(__file__).with_name("warmup_kernels.json")
 """The outermost kernels of each preset's warm-up flight (see the module docstring)."""
 
@@ -171,16 +173,6 @@ def helper_count(max_helpers: int | None = None) -> int:
     if available is not None:
         n = min(n, int(available // HELPER_MEMORY_MIB))
     return n
-
-
-def _peak_mib() -> float:
-    """This process's peak resident memory (MiB); 0 where the platform does not say."""
-    try:
-        import resource
-    except ImportError:  # Windows
-        return 0.0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes on macOS, KiB on Linux
 
 
 def _cores() -> int:
@@ -348,7 +340,7 @@ def python_calls() -> Iterator[list[tuple[str, str, str, float]]]:
     def wrap(original: Any) -> Any:
         def recording(self: Any, *args: Any, **kws: Any) -> Any:
             level = getattr(depth, "n", 0)
-            before = set(self.signatures)
+            before = set(self.signatures) if level == 0 else set()
             t0 = time.process_time()
             depth.n = level + 1
             try:
@@ -415,7 +407,7 @@ def main(argv: list[str] | None = None) -> int:
         read_at = time.time()
         kernels = [Kernel(**{**d, "presets": tuple(d["presets"])}) for d in json.loads(share)]
         results = _helper(kernels)
-        done = {"read_at": read_at, "done_at": time.time(), "results": results, "max_rss_mib": _peak_mib()}
+        done = {"read_at": read_at, "done_at": time.time(), "results": results, "max_rss_mib": max_rss_mib()}
         print(json.dumps(done))
         return 0
     if args[:1] == ["--record"] and len(args) == 2:

@@ -42,14 +42,25 @@ ALLOWED: dict[str, set[str]] = {
     "warmup": {"scenario", "mission", "evaluation", "parallel_compile"},
     # compiles the listed kernels in helper processes before the warm-up flight; writes that list by
     # recording the warm-up flights (mission: the preset names)
-    "parallel_compile": {"warmup", "numba_cache", "mission"},
-    "campaign": {"types", "errors", "scenario", "mission", "evaluation", "warmup", "__init__"},
+    "parallel_compile": {"warmup", "numba_cache", "mission", "process_stats"},
+    "campaign": {
+        "types",
+        "errors",
+        "scenario",
+        "mission",
+        "evaluation",
+        "warmup",
+        "process_stats",
+        "__init__",
+    },
     "cli": _MODELS
     | _STAGES
     | {"sim", "scenario", "evaluation", "campaign", "interfaces", "warmup", "__init__"},
     # the package's import points numba's cache at a directory keyed by the source, before any kernel
     "__init__": {"numba_cache"},
     "numba_cache": set(),
+    # a leaf: this process's resource use
+    "process_stats": set(),
 }
 
 

@@ -74,6 +74,7 @@ from pathlib import Path
 from typing import Any
 
 from alight.errors import AlightError, ConfigError
+from alight.process_stats import max_rss_mib
 
 DEFAULT_MISSION_FN = "alight.campaign.engines:fly_mission"
 ENGINES = ("local", "dask")
@@ -113,14 +114,6 @@ class MissionOutcome:
     max_rss_mib: float | None = None
     """The sandbox's resident-memory high-water mark after the mission (MiB, since the sandbox started,
     warm-up included); None when the sandbox did not answer."""
-
-
-def max_rss_mib() -> float:
-    """This process's resident-memory high-water mark (MiB)."""
-    import resource
-
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes on macOS, KiB on Linux
 
 
 def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
