@@ -198,6 +198,12 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
         f"campaign {result.campaign}: {done}/{result.n_planned} missions recorded "
         f"({result.n_run} flown now, {result.n_errors} errors) in {result.wall_time_s:.1f} s -> {shown}"
     )
+    if result.n_views:
+        print(f"alight campaign: views of {result.n_views} failures drawn (each flown again)", file=sys.stderr)
+    for problem in result.views_problems[:5]:
+        print(f"alight campaign: warning: {problem}", file=sys.stderr)
+    if len(result.views_problems) > 5:
+        print(f"alight campaign: warning: {len(result.views_problems) - 5} more (views.txt)", file=sys.stderr)
     # Status 1 when nothing flew (every recorded mission is an error: a broken install, preset or
     # cluster), so scripts and CI notice; some errors among results still exit 0, with a count line.
     errors, recorded = result.n_recorded_errors, result.n_recorded

@@ -93,3 +93,31 @@ def killed(scenario: Any, out_dir: Path) -> dict[str, Any]:
     (out_dir / "partial.txt").write_text("half a mission", encoding="utf-8")
     os.kill(os.getpid(), signal.SIGKILL)
     return fake_result(scenario)  # never reached
+
+
+def with_log(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """As the default mission does: a failure writes its log (here a stand-in) and no views."""
+    result = fake_result(scenario)
+    if result["outcome"] != "landed":
+        (out_dir / "log.npz").write_bytes(f"log {scenario.seed}".encode())
+    return result
+
+
+def views(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """As the views mission does: the same flight, and a failure's views beside its log and result."""
+    result = with_log(scenario, out_dir)
+    if result["outcome"] != "landed":
+        (out_dir / "replay.gif").write_bytes(b"GIF89a")
+        (out_dir / "result.json").write_text('{"written": "by the views flight"}', encoding="utf-8")
+        (out_dir / "report.html").write_text(f"<p>views {scenario.seed}</p>", encoding="utf-8")
+    return result
+
+
+def views_of_another_flight(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """A views flight that did not fly the recorded flight (a determinism bug): another touchdown error."""
+    result = views(scenario, out_dir)
+    return {**result, "touchdown_error_m": result["touchdown_error_m"] + 1.0}
+
+
+def views_that_raise(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    raise RuntimeError(f"no views for seed {scenario.seed}")

@@ -77,6 +77,13 @@ from alight.errors import AlightError, ConfigError
 from alight.process_stats import max_rss_mib
 
 DEFAULT_MISSION_FN = "alight.campaign.engines:fly_mission"
+VIEWS_MISSION_FN = "alight.campaign.engines:fly_mission_views"
+"""The default mission with its views: a campaign flies a failure again with it to draw them."""
+SIMULATED_MISSION_FNS = (DEFAULT_MISSION_FN, VIEWS_MISSION_FN)
+"""Mission functions that fly the simulator: their sandboxes import it and warm up before "ready"."""
+CLOCK_FIELDS = frozenset({"wall_time_s", "block_time_s"})
+"""The fields of a mission's result that are clocks: two flights of one scenario and seed differ only in
+these."""
 ENGINES = ("local", "dask")
 STARTUP_TIMEOUT_S = 900.0
 """A sandbox that is not ready (imports and warm-up done) after this long is treated as broken (s). The
@@ -118,14 +125,30 @@ class MissionOutcome:
 
 def fly_mission(scenario: Any, out_dir: Path) -> dict[str, Any]:
     """The campaign's mission: fly ``scenario`` with the log on (the flight energy and the platform
-    estimate's RMSE come from it) and a :class:`~alight.evaluation.replay.FrameRecorder`. When it did
-    not land, write the mission's logs, plots, report.html and animated replay (replay.gif) into
-    ``out_dir`` from that same flight.
+    estimate's RMSE come from it). When it did not land, write the mission's log (log.npz, log.csv,
+    log_detections.csv), scenario.yaml and result.json into ``out_dir``: everything needed to study the
+    failure, or to fly it again.
 
-    Why one flight: flying a failure a second time to record it took half of a failed mission's time
-    (issue 18). The recorder keeps 10 downscaled frames per second (about 27 MB for 30 s of a 752x480
-    camera; at most 400 frames, 127 MB in colour, however long the mission), and has no frame rendered
-    that the detector would not have read except the ones it keeps."""
+    Its views (figures, report.html, replay.gif) are not drawn here: they cost more than the flight
+    (about 4 s against 3 s for a 30 s falanga2017 mission, issue 18), and a campaign draws them for the
+    first few failures of each cell only (``views_per_cell``, :func:`fly_mission_views`)."""
+    from alight.evaluation.mission_io import write_mission_dir
+    from alight.evaluation.runner import run_mission
+
+    run = run_mission(scenario, record=True)
+    if run.result["outcome"] != "landed":
+        write_mission_dir(Path(out_dir), scenario, run, report=False)
+    return dict(run.result)
+
+
+def fly_mission_views(scenario: Any, out_dir: Path) -> dict[str, Any]:
+    """:func:`fly_mission` with the views: the same flight, also with a
+    :class:`~alight.evaluation.replay.FrameRecorder`; when it did not land, its figures, report.html and
+    animated replay (replay.gif) beside the log.
+
+    The recorder keeps 10 downscaled frames per second (about 27 MB for 30 s of a 752x480 camera; at most
+    400 frames, 127 MB in colour, however long the mission), and has no frame rendered that the detector
+    would not have read except the ones it keeps; the flight is the same as without it."""
     from alight.evaluation.mission_io import write_mission_dir
     from alight.evaluation.replay import FrameRecorder
     from alight.evaluation.runner import run_mission
@@ -257,7 +280,7 @@ def _serve(
         import alight.mission.presets  # noqa: F401
         import alight.scenario  # noqa: F401
 
-        if fn_name == DEFAULT_MISSION_FN:
+        if fn_name in SIMULATED_MISSION_FNS:
             import alight.evaluation.mission_io  # noqa: F401
             import alight.evaluation.runner  # noqa: F401
     except BaseException as err:  # noqa: BLE001  (reported to the owner, which stops the campaign)

@@ -48,6 +48,7 @@ from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_
 from alight.campaign.summary import group_statistics
 from alight.errors import InputError
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
+from alight.evaluation.log import LOG_NPZ
 from alight.evaluation.replay import REPLAY_GIF
 from alight.evaluation.report import _CSS as _MISSION_CSS
 from alight.evaluation.report import BLOCK_COLORS, OUTCOME_COLORS, SIMULATOR_COLOR, format_quantity
@@ -934,6 +935,8 @@ def _failures_section(res: Results, out_dir: Path) -> list[str]:
                 _link(out_dir, m.mission_dir, MISSION_REPORT, "report"),
                 _link(out_dir, m.mission_dir, REPLAY_GIF, "replay"),
                 _link(out_dir, m.mission_dir, "error.txt", "traceback"),
+                _link(out_dir, m.mission_dir, LOG_NPZ, "log"),
+                _link(out_dir, m.mission_dir, "views.txt", "views.txt"),
                 _link(out_dir, m.mission_dir, "result.json", "result.json"),
             )
             if x
@@ -951,6 +954,12 @@ def _failures_section(res: Results, out_dir: Path) -> list[str]:
             f'<td class="err" title="{_esc(err)}">{_esc(short)}</td></tr>'
         )
     out.append("</tbody></table></div>")
+    out.append(
+        '<p class="muted">Every failure keeps its log and scenario.yaml; the first failures of each '
+        "preset and condition (the campaign's <code>views_per_cell</code>) also have their report and "
+        "replay. <code>alight fly missions/&lt;id&gt;/scenario.yaml --out DIR --replay</code> flies any "
+        "mission again, the same flight, with both.</p>"
+    )
     if len(failed) > len(shown):
         out.append(f'<p class="muted">{len(failed) - len(shown)} more failures are in results.csv.</p>')
     return out

@@ -9,13 +9,14 @@ end of the expansion).
 
 from __future__ import annotations
 
+import json
 import signal
 import sys
 import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -23,7 +24,10 @@ import yaml
 
 import alight
 from alight.campaign.engines import (
+    CLOCK_FIELDS,
     DEFAULT_MISSION_FN,
+    SIMULATED_MISSION_FNS,
+    VIEWS_MISSION_FN,
     MissionFn,
     MissionOutcome,
     MissionTask,
@@ -35,15 +39,19 @@ from alight.campaign.store import (
     BLOCK_TIME_COLUMN,
     BLOCK_TIME_COLUMNS,
     CAMPAIGN_YAML,
+    MISSIONS_DIR,
     RESULT_COLUMNS,
+    RESULT_JSON,
     ResultsStore,
     columns_for,
+    json_safe,
     read_lock,
     write_lock,
     write_mission_dir,
 )
 from alight.campaign.summary import write_summary
 from alight.errors import ConfigError, InputError
+from alight.evaluation.result import OUTCOMES, SCENARIO_YAML
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
 _RESULT_KEYS = tuple(
@@ -76,6 +84,11 @@ class CampaignRunResult:
     included."""
     n_recorded_errors: int = 0
     """Of those, error rows. ``alight campaign`` exits with status 1 when they are all errors."""
+    n_views: int = 0
+    """Failures whose views (figures, report.html, replay.gif) this run drew by flying them again."""
+    views_problems: list[str] = field(default_factory=list)
+    """One line per failure whose views could not be drawn, or whose second flight differed from the
+    recorded one (the mission directory's views.txt says more)."""
 
 
 class CampaignInterrupted(KeyboardInterrupt):
@@ -193,6 +206,124 @@ def _record(out: Path, campaign: Campaign, m: PlannedMission, outcome: MissionOu
         error_text = f"{m.mission_id}: {outcome.error}\n\n{outcome.details or ''}"
     rel = write_mission_dir(out, m.mission_id, result, outcome.files, error_text)
     return _row(m, outcome, rel)
+
+
+VIEWS_TXT = "views.txt"
+"""In a mission directory: why its views are missing, or how their flight differed from the recorded one."""
+VIEWS_MARK = "report.html"
+"""A failure's views are complete once its report.html is written (it is written last)."""
+FLOWN_FAILURES = tuple(o for o in OUTCOMES if o not in ("landed", "error"))
+"""Outcomes of a mission that flew and did not land: the failures that have views (an error has no log)."""
+
+
+def views_wanted(
+    out: Path, missions: list[PlannedMission], rows: list[dict[str, str]], n: int
+) -> list[PlannedMission]:
+    """The failures of ``missions`` that should have their views: in each (preset, condition) cell the
+    first ``n`` of those recorded as a flown failure, by replicate, leaving out those that have them
+    already. The choice depends on the results alone, not on the order in which missions finished."""
+    outcome = {r["mission_id"]: r["outcome"] for r in rows}
+    cells: dict[tuple[str, str], list[PlannedMission]] = {}
+    for m in missions:
+        if outcome.get(m.mission_id) in FLOWN_FAILURES:
+            cells.setdefault((m.preset, m.condition_id), []).append(m)
+    chosen = {
+        m.mission_id for failures in cells.values() for m in sorted(failures, key=lambda m: m.replicate)[:n]
+    }
+    return [
+        m
+        for m in missions
+        if m.mission_id in chosen and not (out / MISSIONS_DIR / m.mission_id / VIEWS_MARK).is_file()
+    ]
+
+
+def _comparable(result: dict[str, Any]) -> dict[str, Any]:
+    """A result as result.json holds it, without its clocks and the campaign's context."""
+    data = json.loads(json.dumps(json_safe(result)))
+    return {k: v for k, v in data.items() if k not in CLOCK_FIELDS and k != "campaign"}
+
+
+def _differences(recorded: dict[str, Any], again: dict[str, Any]) -> list[str]:
+    keys = sorted(set(recorded) | set(again))
+    return [f"{k}: {recorded.get(k)!r} -> {again.get(k)!r}" for k in keys if recorded.get(k) != again.get(k)]
+
+
+def _record_views(out: Path, m: PlannedMission, outcome: MissionOutcome) -> str | None:
+    """Add the views that a second flight of ``m`` drew to its mission directory; None, or one line
+    saying what went wrong (also written into the directory's views.txt). The recorded result.json and
+    scenario.yaml stay: they are the campaign's record."""
+    target = out / MISSIONS_DIR / m.mission_id
+    problem: str | None = None
+    detail = ""
+    if outcome.error is not None or outcome.result is None:
+        problem = f"{m.mission_id}: its views could not be drawn ({outcome.error})"
+        detail = outcome.details or ""
+    else:
+        try:
+            recorded = json.loads((target / RESULT_JSON).read_text(encoding="utf-8"))
+        except (OSError, ValueError) as err:
+            recorded = {"unreadable": str(err)}
+        diff = _differences(_comparable(recorded), _comparable(outcome.result))
+        if diff:
+            problem = (
+                f"{m.mission_id}: the flight drawn for its views differed from the recorded one "
+                f"({diff[0]}{'; ...' if len(diff) > 1 else ''})"
+            )
+            detail = "Differences (recorded -> flown again for the views):\n" + "\n".join(diff) + "\n"
+        files = {k: v for k, v in outcome.files.items() if k not in (RESULT_JSON, SCENARIO_YAML)}
+        if VIEWS_MARK not in files and problem is None:
+            problem = f"{m.mission_id}: the flight drawn for its views wrote no {VIEWS_MARK}"
+        # report.html last: its presence says the views are complete
+        for name in sorted(files, key=lambda k: k == VIEWS_MARK):
+            dest = (target / name).resolve()
+            if target.resolve() not in dest.parents:
+                problem = problem or f"{m.mission_id}: refusing to write {name!r} outside its directory"
+                continue
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            dest.write_bytes(files[name])
+    views_txt = target / VIEWS_TXT
+    if problem is None:
+        views_txt.unlink(missing_ok=True)
+    else:
+        views_txt.write_text(problem + "\n\n" + detail, encoding="utf-8")
+    return problem
+
+
+def _fly_views(
+    out: Path,
+    campaign: Campaign,
+    wanted: list[PlannedMission],
+    runner: Any,
+    progress: bool,
+    result: CampaignRunResult,
+) -> bool:
+    """Fly ``wanted`` again on ``runner`` and add their views; True when Ctrl-C stopped it."""
+    by_id = {m.mission_id: m for m in wanted}
+    tasks = [MissionTask(m.mission_id, m.scenario, campaign.timeout_s) for m in wanted]
+    bar = _Progress(f"{campaign.name} views", len(wanted), 0, progress)
+    done: set[str] = set()
+    interrupted = False
+    with _Interrupts() as interrupts:
+        outcomes = runner.run(tasks)
+        try:
+            bar.show()
+            for outcome in outcomes:
+                if outcome.mission_id in done:
+                    continue
+                done.add(outcome.mission_id)
+                with interrupts.critical():
+                    problem = _record_views(out, by_id[outcome.mission_id], outcome)
+                result.n_views += int(problem is None)
+                if problem is not None:
+                    result.views_problems.append(problem)
+                bar.update(problem is not None)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            interrupts.ignore()
+            outcomes.close()
+            bar.close()
+    return interrupted
 
 
 class _Progress:
@@ -314,6 +445,7 @@ def run_campaign(
     report: bool = True,
     warmup: bool | None = None,
     memory_limit_mib: float | None = None,
+    views_fn: MissionFn | str | None = None,
 ) -> CampaignRunResult:
     """Fly every mission of ``campaign`` not yet in ``out_dir/results.csv`` (default ``runs/<name>``).
 
@@ -323,9 +455,12 @@ def run_campaign(
     module-level function or ``"module:function"``. ``warmup``: every sandbox flies a short mission of
     each of the campaign's presets before its first mission, so numba's compile stays out of the mission
     clocks (default: only for the default mission function). ``memory_limit_mib``: a worker process whose
-    memory high-water mark is over it after a mission is replaced by a fresh one. Raises ``AlightError``
-    for bad input and ``CampaignInterrupted`` on Ctrl-C (after recording what finished and writing
-    summary.json).
+    memory high-water mark is over it after a mission is replaced by a fresh one. ``views_fn``: the
+    mission function that flies a failure again to draw its views, for the first ``views_per_cell``
+    failures of each cell once the sweep is over (default: ``engines.fly_mission_views`` for the default
+    missions, none for others); with ``views_per_cell: all`` it flies every mission instead. Raises
+    ``AlightError`` for bad input and ``CampaignInterrupted`` on Ctrl-C (after recording what finished
+    and writing summary.json).
     """
     t0 = time.monotonic()
     if not isinstance(campaign, Campaign):
@@ -333,18 +468,28 @@ def run_campaign(
     if limit is not None and limit < 1:
         raise ConfigError(f"--limit must be >= 1, got {limit}")
     fn_spec = function_spec(mission_fn)
+    if views_fn is not None:
+        views_spec: str | None = function_spec(views_fn)
+    else:
+        views_spec = VIEWS_MISSION_FN if fn_spec == DEFAULT_MISSION_FN else None
+    views_per_cell = campaign.spec.views_per_cell
+    if views_per_cell == "all" and views_spec is not None:
+        # every failure's views from its one flight: the sweep flies the views function itself
+        fn_spec, views_spec = views_spec, None
+    elif views_per_cell == 0:
+        views_spec = None
     # Real missions: every sandbox compiles the campaign's presets' kernels before its first mission, so
     # no mission's clocks or deadline pay for numba's compile. Other mission functions (the tests' fakes)
     # need no warm-up unless asked.
     if warmup is None:
-        warmup = fn_spec == DEFAULT_MISSION_FN
+        warmup = fn_spec in SIMULATED_MISSION_FNS
+    engine_options: dict[str, Any] = {
+        "workers": workers,
+        "scheduler": scheduler,
+        "memory_limit_mib": memory_limit_mib,
+    }
     runner = make_engine(
-        engine,
-        workers=workers,
-        scheduler=scheduler,
-        fn_spec=fn_spec,
-        warmup=tuple(campaign.presets) if warmup else (),
-        memory_limit_mib=memory_limit_mib,
+        engine, fn_spec=fn_spec, warmup=tuple(campaign.presets) if warmup else (), **engine_options
     )
 
     out = Path(out_dir) if out_dir is not None else Path("runs") / campaign.name
@@ -424,6 +569,21 @@ def run_campaign(
                     "run the same command again to resume",
                     result,
                 )
+        if views_spec is not None and isinstance(views_per_cell, int):
+            wanted = views_wanted(out, missions, store.rows, views_per_cell)
+            if wanted:
+                presets = tuple(p for p in campaign.presets if any(m.preset == p for m in wanted))
+                views_warmup = warmup or views_spec in SIMULATED_MISSION_FNS
+                views_runner = make_engine(
+                    engine, fn_spec=views_spec, warmup=presets if views_warmup else (), **engine_options
+                )
+                if _fly_views(out, campaign, wanted, views_runner, progress, result):
+                    result.wall_time_s = time.monotonic() - t0
+                    raise CampaignInterrupted(
+                        f"interrupted while drawing the views of failures: all {result.n_recorded} missions "
+                        f"are recorded in {out}; run the same command again to draw the rest",
+                        result,
+                    )
         if report:  # Ctrl-C works again here: the results are complete whatever happens to the report
             result.report_path, result.report_error = write_report(out)
     finally:

@@ -47,6 +47,9 @@ PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 MAX_MISSIONS = 100_000
 """Largest number of missions one campaign file may expand to (see "Size" in the module docstring)."""
+VIEWS_PER_CELL = 3
+"""Default of a campaign's ``views_per_cell``: the views of a failure cost more than its flight (about
+4 s against 3 s for a 30 s falanga2017 mission, issue 18), and a few per cell show what went wrong."""
 
 _RESERVED = {
     "preset": "choose presets with the campaign's 'presets' list",
@@ -166,6 +169,10 @@ class CampaignSpec(_Strict):
     """Overrides the base scenario's simulated duration (s)."""
     timeout_s: PositiveFloat = 600.0
     """Wall-clock limit of one mission (s); a mission still running then is killed, recorded as an error."""
+    views_per_cell: Annotated[int, Field(ge=0)] | Literal["all"] = VIEWS_PER_CELL
+    """How many failures of each (preset, condition) cell get their views (figures, report.html and
+    replay.gif): the first ones by replicate, flown again after the sweep. ``all``: every failure, drawn
+    from its one flight during the sweep. Every failure keeps its log, scenario and result either way."""
 
 
 @dataclass(frozen=True)
