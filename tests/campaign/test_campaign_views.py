@@ -47,10 +47,11 @@ def _has_views(out: Path, row: dict[str, str]) -> bool:
     return (out / row["mission_dir"] / "report.html").is_file()
 
 
-def _run(out: Path, views_fn: object = campaign_fakes.views, **over: object):  # type: ignore[no-untyped-def]
+def _run(out: Path, views_fn: object = campaign_fakes.views, engine: str = "local", **over: object):  # type: ignore[no-untyped-def]
     return run_campaign(
         campaign_from_dict(_campaign(**over)),
         out,
+        engine=engine,
         workers=2,
         mission_fn=campaign_fakes.with_log,
         views_fn=views_fn,  # type: ignore[arg-type]
@@ -84,6 +85,16 @@ def test_the_first_failures_of_each_cell_get_their_views_and_every_failure_its_l
     for rows in cells.values():
         assert [_has_views(tmp_path, r) for r in rows] == [True] * 3 + [False] * (len(rows) - 3)
     assert _run(tmp_path, views_per_cell=3).n_views == 0
+
+
+def test_the_same_missions_get_views_on_every_engine(tmp_path: Path) -> None:
+    pytest.importorskip("distributed", reason="the dask engine needs distributed (pip install alight[dask])")
+    chosen = {}
+    for engine in ("local", "dask"):
+        assert _run(tmp_path / engine, engine=engine).n_views == 4
+        rows = _rows(tmp_path / engine)
+        chosen[engine] = sorted(r["mission_id"] for r in rows if _has_views(tmp_path / engine, r))
+    assert chosen["local"] == chosen["dask"] and len(chosen["local"]) == 4
 
 
 def test_views_per_cell_all_draws_every_failure_in_the_sweep_and_zero_none(tmp_path: Path) -> None:
