@@ -217,6 +217,28 @@ def test_a_companion_on_the_camera_stream_has_the_warm_up_allowance_for_its_hear
         ap.close()
 
 
+def test_a_companion_that_closes_the_camera_stream_loses_its_allowance() -> None:
+    # A bridge that dies while it compiles closes the camera stream: the emulator stops waiting for it
+    # (0.3 s, the ordinary wait, from the moment it left) instead of keeping the 30 s allowance.
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 2.0, "seed": 0})
+    port = free_port_pair()
+    ap = EmulatedAutopilot(
+        scenario, SitlConfig(port=port, lockstep=False, wait_for_peer_s=0.3, wait_for_warm_up_s=30.0)
+    )
+    cam = SocketCameraSource("127.0.0.1", port + 1)
+    closer = threading.Timer(0.6, cam.close)
+    closer.start()
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(InputError, match=r"within 0\.3 s after a companion closed the camera stream"):
+            ap._wait_for_peer()
+        assert 0.6 + 0.3 <= time.monotonic() - t0 < 10.0
+    finally:
+        closer.join()
+        cam.close()
+        ap.close()
+
+
 def test_ardupilot_guided_stops_after_guid_timeout_and_stays_guided() -> None:
     port = free_port_pair()
     scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 7.0, "seed": 0})

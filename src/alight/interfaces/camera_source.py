@@ -108,8 +108,24 @@ class FrameServer:
 
     @property
     def connected(self) -> bool:
+        """A client holds the stream now: one that has closed its end is dropped here, not only when a
+        send to it fails (the emulator waits for a companion without sending anything)."""
         self._accept()
+        if self._client is not None and self._client_closed():
+            self._client.close()
+            self._client = None
         return self._client is not None
+
+    def _client_closed(self) -> bool:
+        assert self._client is not None
+        try:
+            # a client never sends on this stream: readable with no bytes means it closed its end
+            data = self._client.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError:  # reset by the peer
+            return True
+        return data == b""
 
     def _accept(self) -> None:
         if self._client is not None:

@@ -794,13 +794,22 @@ class EmulatedAutopilot:
         cfg = self.config
         wall0 = time.monotonic()
         stream_t: float | None = None
+        closed = False
         while not self.peer_seen:
             now = time.monotonic()
-            if stream_t is None and self.frames.connected:
+            connected = self.frames.connected
+            if stream_t is None and connected:
                 stream_t = now
+            elif stream_t is not None and not connected:
+                # The companion closed the camera stream before its first HEARTBEAT (it died or gave up):
+                # its allowance ends, and another companion gets the ordinary wait.
+                stream_t, wall0, closed = None, now, True
             where = f"udp {cfg.host}:{cfg.port}"
             if stream_t is None and now - wall0 > cfg.wait_for_peer_s:
-                raise InputError(f"sitl: no companion HEARTBEAT on {where} within {cfg.wait_for_peer_s:g} s")
+                after = " after a companion closed the camera stream" if closed else ""
+                raise InputError(
+                    f"sitl: no companion HEARTBEAT on {where} within {cfg.wait_for_peer_s:g} s{after}"
+                )
             if stream_t is not None and now - stream_t > cfg.wait_for_warm_up_s:
                 raise InputError(
                     f"sitl: the companion opened the camera stream but sent no HEARTBEAT on {where} within"
