@@ -199,7 +199,9 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
         f"({result.n_run} flown now, {result.n_errors} errors) in {result.wall_time_s:.1f} s -> {shown}"
     )
     if result.n_views:
-        print(f"alight campaign: views of {result.n_views} failures drawn (each flown again)", file=sys.stderr)
+        print(
+            f"alight campaign: views of {result.n_views} failures drawn (each flown again)", file=sys.stderr
+        )
     for problem in result.views_problems[:5]:
         print(f"alight campaign: warning: {problem}", file=sys.stderr)
     if len(result.views_problems) > 5:

@@ -116,6 +116,9 @@ def test_a_views_flight_that_differs_from_the_record_is_said(tmp_path: Path) -> 
         d = tmp_path / rows[0]["mission_dir"]
         text = (d / VIEWS_TXT).read_text()
         assert "differed from the recorded one" in text and "touchdown_error_m" in text
+        # the views are kept, beside the record: the sweep's result.json and log stay
+        assert (d / "report.html").is_file()
+        assert json.loads((d / "result.json").read_text())["campaign"]["mission_id"] == rows[0]["mission_id"]
         assert result.views_problems[0].count("\n") == 0
 
 

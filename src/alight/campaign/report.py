@@ -47,8 +47,8 @@ from matplotlib.patches import Patch
 from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
 from alight.campaign.summary import group_statistics
 from alight.errors import InputError
-from alight.evaluation.plots import DPI, figure_to_png, new_figure
 from alight.evaluation.log import LOG_NPZ
+from alight.evaluation.plots import DPI, figure_to_png, new_figure
 from alight.evaluation.replay import REPLAY_GIF
 from alight.evaluation.report import _CSS as _MISSION_CSS
 from alight.evaluation.report import BLOCK_COLORS, OUTCOME_COLORS, SIMULATOR_COLOR, format_quantity

@@ -51,7 +51,7 @@ from alight.campaign.store import (
 )
 from alight.campaign.summary import write_summary
 from alight.errors import ConfigError, InputError
-from alight.evaluation.result import OUTCOMES, SCENARIO_YAML
+from alight.evaluation.result import OUTCOMES
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
 _RESULT_KEYS = tuple(
@@ -250,8 +250,8 @@ def _differences(recorded: dict[str, Any], again: dict[str, Any]) -> list[str]:
 
 def _record_views(out: Path, m: PlannedMission, outcome: MissionOutcome) -> str | None:
     """Add the views that a second flight of ``m`` drew to its mission directory; None, or one line
-    saying what went wrong (also written into the directory's views.txt). The recorded result.json and
-    scenario.yaml stay: they are the campaign's record."""
+    saying what went wrong (also written into the directory's views.txt). The views only add files: the
+    recorded result.json, scenario.yaml and log stay as the sweep wrote them (they are the record)."""
     target = out / MISSIONS_DIR / m.mission_id
     problem: str | None = None
     detail = ""
@@ -270,7 +270,7 @@ def _record_views(out: Path, m: PlannedMission, outcome: MissionOutcome) -> str 
                 f"({diff[0]}{'; ...' if len(diff) > 1 else ''})"
             )
             detail = "Differences (recorded -> flown again for the views):\n" + "\n".join(diff) + "\n"
-        files = {k: v for k, v in outcome.files.items() if k not in (RESULT_JSON, SCENARIO_YAML)}
+        files = {k: v for k, v in outcome.files.items() if not (target / k).exists()}
         if VIEWS_MARK not in files and problem is None:
             problem = f"{m.mission_id}: the flight drawn for its views wrote no {VIEWS_MARK}"
         # report.html last: its presence says the views are complete
