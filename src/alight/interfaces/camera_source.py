@@ -26,6 +26,7 @@ import contextlib
 import io
 import json
 import math
+import select
 import socket
 import struct
 import threading
@@ -120,12 +121,12 @@ class FrameServer:
         assert self._client is not None
         try:
             # a client never sends on this stream: readable with no bytes means it closed its end
-            data = self._client.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
-        except (BlockingIOError, InterruptedError):
+            readable, _, _ = select.select([self._client], [], [], 0.0)
+            return bool(readable) and self._client.recv(1, socket.MSG_PEEK) == b""
+        except InterruptedError:
             return False
         except OSError:  # reset by the peer
             return True
-        return data == b""
 
     def _accept(self) -> None:
         if self._client is not None:
