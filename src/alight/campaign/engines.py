@@ -39,9 +39,10 @@ the directories whose owner pid is no longer alive (owner and sandbox both kille
 worker killed with its process group, or before its sandbox learnt the directory's name). The owner's
 pid, not the sandbox's, names the directory, because the owner exists before the sandbox and outlives it.
 
-A sandbox running the default mission function warms up before it reports ready
-(:func:`alight.warmup.warm_up`: a short flight of each of the campaign's presets compiles every numba
-kernel they use), so compile time never lands in a mission's ``wall_time_s``, block timers or deadline.
+A sandbox running the default mission function (or its views variant, ``fly_mission_views``) warms up
+before it reports ready (:func:`alight.warmup.warm_up`: a short flight of each of the campaign's presets
+compiles every numba kernel they use), so compile time never lands in a mission's ``wall_time_s``, block
+timers or deadline.
 
 Sandboxes need ``fork``/``exec`` with inherited file descriptors (``pass_fds``): Linux and macOS.
 

@@ -454,13 +454,13 @@ def run_campaign(
     the campaign's order. ``mission_fn``: what a mission is (default ``engines.fly_mission``), a
     module-level function or ``"module:function"``. ``warmup``: every sandbox flies a short mission of
     each of the campaign's presets before its first mission, so numba's compile stays out of the mission
-    clocks (default: only for the default mission function). ``memory_limit_mib``: a worker process whose
-    memory high-water mark is over it after a mission is replaced by a fresh one. ``views_fn``: the
-    mission function that flies a failure again to draw its views, for the first ``views_per_cell``
-    failures of each cell once the sweep is over (default: ``engines.fly_mission_views`` for the default
-    missions, none for others); with ``views_per_cell: all`` it flies every mission instead. Raises
-    ``AlightError`` for bad input and ``CampaignInterrupted`` on Ctrl-C (after recording what finished
-    and writing summary.json).
+    clocks (default: only for the default mission function and its views variant). ``memory_limit_mib``:
+    a worker process whose memory high-water mark is over it after a mission is replaced by a fresh one.
+    ``views_fn``: the mission function that flies a failure again to draw its views, for the first
+    ``views_per_cell`` failures of each cell once the sweep is over (default:
+    ``engines.fly_mission_views`` for the default missions, none for others); with ``views_per_cell: all``
+    it flies every mission instead. Raises ``AlightError`` for bad input and ``CampaignInterrupted`` on
+    Ctrl-C (after recording what finished and writing summary.json).
     """
     t0 = time.monotonic()
     if not isinstance(campaign, Campaign):
