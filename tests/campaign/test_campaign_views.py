@@ -11,9 +11,10 @@ from pathlib import Path
 import campaign_fakes
 import pytest
 
+import alight.campaign.run as campaign_run
 from alight.campaign import campaign_from_dict, run_campaign
 from alight.campaign.run import VIEWS_TXT
-from alight.errors import ConfigError
+from alight.errors import AlightError, ConfigError
 
 
 def _campaign(**over: object) -> dict:
@@ -134,6 +135,37 @@ def test_views_that_fail_are_said_and_drawn_on_the_next_run(tmp_path: Path) -> N
     assert again.n_views == 2 and again.views_problems == []
     assert all(_has_views(tmp_path, r) for r in rows)
     assert not any((tmp_path / r["mission_dir"] / VIEWS_TXT).exists() for r in rows)
+
+
+def test_an_engine_that_cannot_fly_the_views_costs_neither_results_nor_report(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    real = campaign_run.make_engine
+
+    class Broken:
+        name = "local"
+
+        def run(self, tasks: object) -> object:
+            raise AlightError("campaign worker process ended during start-up (killed by signal 9)")
+
+    def make_engine(engine: str, *, fn_spec: str, **kw: object) -> object:
+        return Broken() if fn_spec.endswith(":views") else real(engine, fn_spec=fn_spec, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(campaign_run, "make_engine", make_engine)
+    result = run_campaign(
+        campaign_from_dict(_campaign()),
+        tmp_path,
+        workers=2,
+        mission_fn=campaign_fakes.with_log,
+        views_fn=campaign_fakes.views,
+    )
+    assert result.n_run == 16 and len(_rows(tmp_path)) == 16
+    assert result.report_path is not None and result.report_path.is_file()
+    assert result.n_views == 0 and len(result.views_problems) == 1
+    assert "were not drawn" in result.views_problems[0] and "start-up" in result.views_problems[0]
+    # the next run, with an engine that works, draws them
+    monkeypatch.undo()
+    assert _run(tmp_path).n_views == 4
 
 
 @pytest.mark.parametrize("value", [-1, "some", 1.5])

@@ -50,7 +50,7 @@ from alight.campaign.store import (
     write_mission_dir,
 )
 from alight.campaign.summary import write_summary
-from alight.errors import ConfigError, InputError
+from alight.errors import AlightError, ConfigError, InputError
 from alight.evaluation.result import OUTCOMES
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
@@ -577,7 +577,17 @@ def run_campaign(
                 views_runner = make_engine(
                     engine, fn_spec=views_spec, warmup=presets if views_warmup else (), **engine_options
                 )
-                if _fly_views(out, campaign, wanted, views_runner, progress, result):
+                try:
+                    stopped = _fly_views(out, campaign, wanted, views_runner, progress, result)
+                except (AlightError, OSError) as err:
+                    # The engine could not fly the views (workers that die at start-up, a lost
+                    # scheduler): every result is recorded, and the report is still written.
+                    stopped = False
+                    result.views_problems.append(
+                        f"the views of {len(wanted)} failures were not drawn ({_one_line(err)}); "
+                        "run the same command again to draw them"
+                    )
+                if stopped:
                     result.wall_time_s = time.monotonic() - t0
                     raise CampaignInterrupted(
                         f"interrupted while drawing the views of failures: all {result.n_recorded} missions "
