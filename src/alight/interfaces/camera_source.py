@@ -111,7 +111,7 @@ class FrameServer:
     def connected(self) -> bool:
         """A client holds the stream now: one that has closed its end is dropped here, not only when a
         send to it fails (the emulator waits for a companion without sending anything)."""
-        self._accept()
+        self.accept()
         if self._client is not None and self._client_closed():
             self._client.close()
             self._client = None
@@ -128,7 +128,8 @@ class FrameServer:
         except OSError:  # reset by the peer
             return True
 
-    def _accept(self) -> None:
+    def accept(self) -> None:
+        """Take a waiting client, if there is none yet (non-blocking); it is sent ``hello`` at once."""
         if self._client is not None:
             return
         try:
@@ -142,7 +143,7 @@ class FrameServer:
             self._send(self.hello)
 
     def _send(self, data: bytes) -> bool:
-        self._accept()
+        self.accept()
         if self._client is None:
             return False
         try:

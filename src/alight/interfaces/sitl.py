@@ -767,7 +767,7 @@ class EmulatedAutopilot:
         the acknowledgement arrived cost a whole ``timeout_s`` per control period)."""
         sock = self.conn.port
         deadline = time.monotonic() + timeout_s
-        _ = self.frames.connected  # accept the camera client (it receives the scenario at once)
+        self.frames.accept()  # the camera client receives the scenario at once
         while True:
             while True:
                 try:
