@@ -168,6 +168,21 @@ def test_an_engine_that_cannot_fly_the_views_costs_neither_results_nor_report(
     assert _run(tmp_path).n_views == 4
 
 
+def test_views_per_cell_is_refused_where_no_function_draws_views(tmp_path: Path) -> None:
+    with pytest.raises(
+        ConfigError, match="views_per_cell: the mission function .* no views function"
+    ) as info:
+        run_campaign(campaign_from_dict(_campaign()), tmp_path, workers=1, mission_fn=campaign_fakes.with_log)
+    assert "\n" not in str(info.value)
+    # left out, the key's default stays silent: a custom mission writes what it writes
+    spec = _campaign()
+    del spec["views_per_cell"]
+    result = run_campaign(
+        campaign_from_dict(spec), tmp_path, workers=1, mission_fn=campaign_fakes.with_log, report=False
+    )
+    assert result.n_run == 16 and result.n_views == 0
+
+
 @pytest.mark.parametrize("value", [-1, "some", 1.5])
 def test_a_bad_views_per_cell_is_refused_with_one_line(value: object) -> None:
     with pytest.raises(ConfigError, match="views_per_cell") as info:

@@ -473,6 +473,11 @@ def run_campaign(
     else:
         views_spec = VIEWS_MISSION_FN if fn_spec == DEFAULT_MISSION_FN else None
     views_per_cell = campaign.spec.views_per_cell
+    if views_spec is None and "views_per_cell" in campaign.spec.model_fields_set:
+        raise ConfigError(
+            f"views_per_cell: the mission function {fn_spec} writes its own files and has no views "
+            "function to draw them (give views_fn, or leave views_per_cell out)"
+        )
     if views_per_cell == "all" and views_spec is not None:
         # every failure's views from its one flight: the sweep flies the views function itself
         fn_spec, views_spec = views_spec, None
