@@ -6,8 +6,8 @@ Run: ``python benchmarks/campaign_throughput.py [--missions 2] [--duration-s 15]
 defaults on two cores). Every figure is from real campaigns (``alight.campaign.run_campaign``) into a
 temporary directory:
 
-- ``presets.<name>``: a fixed campaign of ``--missions`` missions of the preset (the warm-up flight's
-  scenario, ``--duration-s`` simulated seconds, a platform driving past the take-off point) on the local
+- ``presets.<name>``: a fixed campaign of ``--missions`` missions of the preset (``_BASE``,
+  ``--duration-s`` simulated seconds, a platform driving past the take-off point) on the local
   engine with 2 workers. ``missions_per_hour`` is end to end (start-up, warm-up, recording, summary
   included: what a user sees for a campaign this short); ``missions_per_hour_steady`` is
   ``3600 * workers / mean mission wall time``, the rate a long campaign approaches. ``mission_wall_s``,
@@ -44,7 +44,6 @@ from typing import Any
 
 from alight.campaign import campaign_from_dict, run_campaign
 from alight.campaign.engines import fly_mission, max_rss_mib
-from alight.warmup import warmup_scenario
 
 PRESETS = ("groundtruth", "falanga2017", "zamanakos_sdu", "kim_kaist")
 MODULE = Path(__file__).stem
@@ -68,11 +67,17 @@ def instant(scenario: Any, out_dir: Path) -> dict[str, Any]:
     }
 
 
+# The missions flown: a platform that drives toward the take-off point, under the camera within a few
+# seconds, so a 15 s mission takes off, detects, tracks and approaches. (This was the warm-up flight's
+# scenario until the warm-up started the platform out of view to fly the search too; the benchmark keeps
+# its missions, so its figures stay comparable.)
+_BASE: dict[str, Any] = {
+    "platform": {"path": "straight", "speed_mps": 1.0, "start_xy": [6.0, 2.0], "heading_rad": 3.14},
+}
+
+
 def _campaign(name: str, preset: str, n: int, duration_s: float) -> Any:
-    base = warmup_scenario(preset)
-    for key in ("name", "preset", "seed"):
-        base.pop(key)
-    base["duration_s"] = duration_s
+    base = {**_BASE, "duration_s": duration_s}
     return campaign_from_dict(
         {
             "name": name,

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -26,38 +27,94 @@ def _env(**extra: str) -> dict[str, str]:
     return env
 
 
-def test_the_kernel_list_is_what_each_presets_warm_up_flight_calls_from_python() -> None:
-    # One process flies every preset's warm-up in turn and records each kernel signature the first time
-    # Python calls it (a later preset that calls it again is not seen, so each recorded signature must
-    # list at least the preset that first called it). Nothing recorded may be missing from the list, and
-    # nothing listed may be stale. Regenerate with: python -m alight.parallel_compile --write
+# Missions that reach what a warm-up flight once did not: a platform out of view at the end of the climb
+# (exploration), the figure-8's kernels with a brake, a fast platform with telemetry (for the presets that
+# fuse it).
+_AFTER_WARM_UP = [
+    {"duration_s": 20.0, "platform": {"path": "straight", "speed_mps": 3.0}},
+    {
+        "duration_s": 20.0,
+        "platform": {
+            "path": "figure8",
+            "speed_mps": 4.0,
+            "start_xy": [4.0, 1.0],
+            "speed_profile": {"brake_stop": {"t_s": 6.0, "decel_mps2": 3.0, "wait_s": 1.0}},
+        },
+    },
+    {
+        "duration_s": 15.0,
+        "platform": {
+            "path": "straight",
+            "speed_mps": 6.0,
+            "telemetry": {"rate_hz": 10.0, "noise_m": 0.5, "latency_s": 0.2, "bias_m": 1.0},
+        },
+    },
+]
+
+
+@pytest.fixture(scope="module")
+def warm_up_calls() -> dict[str, Any]:
+    """One process flies every listed preset's warm-up in turn, recording each kernel signature the first
+    time Python calls it; then, with every warm-up done, flies :data:`_AFTER_WARM_UP` with each preset
+    and records what those call for the first time."""
     presets = sorted({p for k in read_manifest() for p in k.presets})
     script = textwrap.dedent(f"""
         import json
+        from alight.errors import ConfigError
+        from alight.evaluation.runner import run_mission
         from alight.parallel_compile import python_calls
+        from alight.scenario import scenario_from_dict
         from alight.warmup import warm_up
-        seen = {{}}
+        seen, after = {{}}, {{}}
         with python_calls() as calls:
             for preset in {presets!r}:
                 n = len(calls)
                 warm_up([preset], compile_first=False)
                 seen[preset] = [c[:3] for c in calls[n:]]
-        print(json.dumps(seen))
+            for preset in {presets!r}:
+                for i, extra in enumerate({_AFTER_WARM_UP!r}):
+                    n = len(calls)
+                    scenario = {{"preset": preset, "seed": 3 + i, **extra}}
+                    try:
+                        run_mission(scenario_from_dict(scenario), record=True)
+                    except ConfigError as err:  # a platform estimator without telemetry refuses it
+                        assert "cannot fuse telemetry" in str(err), err
+                    after[f"{{preset}} {{i}}"] = [c[:3] for c in calls[n:]]
+        print(json.dumps({{"seen": seen, "after": after}}))
     """)
     out = subprocess.run(
         [sys.executable, "-c", script], env=_env(), capture_output=True, text=True, timeout=1800
     )
     assert out.returncode == 0, out.stderr[-2000:]
-    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_the_kernel_list_is_what_each_presets_warm_up_flight_calls_from_python(
+    warm_up_calls: dict[str, Any],
+) -> None:
+    # A later preset that calls a kernel signature again is not seen, so each recorded signature must
+    # list at least the preset that first called it. Nothing recorded may be missing from the list, and
+    # nothing listed may be stale. Regenerate with: python -m alight.parallel_compile --write
     listed = {(k.module, k.qualname, k.signature): k for k in read_manifest()}
     recorded = set()
-    for preset, calls in seen.items():
+    for preset, calls in warm_up_calls["seen"].items():
         for call in calls:
             key = tuple(call)
             assert key in listed, f"{preset} calls {key[0]}.{key[1]}{key[2]}, not in {MANIFEST.name}"
             assert preset in listed[key].presets, (key, preset)
             recorded.add(key)
     assert set(listed) == recorded, f"stale in {MANIFEST.name}: {sorted(set(listed) - recorded)}"
+
+
+def test_after_the_warm_up_a_mission_calls_no_kernel_signature_it_did_not_load(
+    warm_up_calls: dict[str, Any],
+) -> None:
+    # A signature first called in a mission is compiled (or loaded) on that mission's clock: seconds of
+    # compile in its wall_time_s and block times, and in a campaign's timeout.
+    after = warm_up_calls["after"]
+    late = {m: [f"{c[0]}.{c[1]}{c[2]}" for c in calls] for m, calls in after.items() if calls}
+    assert not late, f"called first after the warm-up: {late}"
 
 
 def test_every_listed_signature_reads_back_as_written() -> None:

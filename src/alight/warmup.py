@@ -5,12 +5,16 @@ process pays for the compile in its ``wall_time_s``, its block timers and its wa
 (the detector once showed 2,503 ms per simulated second instead of 43). So a campaign's sandbox calls
 :func:`warm_up` before it reports ready: the mission clocks then start after every kernel is compiled.
 
-The warm-up flies a short mission of each preset (a platform that drives past the take-off point, so
-the flight goes through take-off, exploration, detection, tracking and the landing approach) rather
-than calling each kernel on tiny inputs: a flight compiles exactly the signatures (dtypes, layouts,
-read-only flags) that missions use, and stays right when a kernel or its caller changes. Its results
-are thrown away; it changes no state that a later mission sees (every mission builds its own world and
-pipeline from its scenario).
+The warm-up flies a whole mission of each preset rather than calling each kernel on tiny inputs: a
+flight compiles exactly the signatures (dtypes, layouts, read-only flags) that missions use, and stays
+right when a kernel or its caller changes. The platform starts out of the camera's view and drives
+toward the take-off point, so the flight goes through take-off, exploration, detection, tracking, the
+landing approach down to the close-range detection, and the touchdown (a flight that stopped at the
+approach left the exploration's and the close range's kernels to compile in the middle of the first
+missions that reached them, on their clocks). What a flight cannot meet, because the scenario decides it
+and not the flight phase, is called directly: the kernels of every platform path
+(:func:`_every_platform_path`). Its results are thrown away; it changes no state that a later mission
+sees (every mission builds its own world and pipeline from its scenario).
 
 Every ``@njit`` in alight has ``cache=True``, so the compile happens once per install: later processes
 load the machine code from numba's cache (milliseconds per kernel). The cache directory is keyed by the
@@ -33,15 +37,17 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from alight.parallel_compile import CompileAheadReport
 
-WARMUP_DURATION_S = 12.0
-"""Simulated seconds of each warm-up flight: the groundtruth preset is on its landing approach by then."""
+WARMUP_DURATION_S = 60.0
+"""Most simulated seconds of a warm-up flight. It ends when the vehicle has landed: after 28-34 s, 49 s for
+kim_kaist's slow descent (2026-11-29)."""
 
 _WARMUP_BASE: dict[str, Any] = {
     "name": "warm-up",
     "seed": 0,
     "duration_s": WARMUP_DURATION_S,
-    # Driving toward the take-off point: the pad is under the camera within a few seconds.
-    "platform": {"path": "straight", "speed_mps": 1.0, "start_xy": [6.0, 2.0], "heading_rad": 3.14},
+    # Out of view when the climb ends, also of kim_kaist's omnidirectional camera (the vehicle explores),
+    # driving toward the take-off point: the search finds it within 6-11 s.
+    "platform": {"path": "straight", "speed_mps": 1.0, "start_xy": [35.0, 2.0], "heading_rad": 3.14},
 }
 
 
@@ -125,9 +131,29 @@ def warm_up(presets: Iterable[str], *, compile_first: bool = True) -> WarmupRepo
     t0 = time.perf_counter()
     ahead = compile_ahead(names) if compile_first else None
     with compile_meter() as meter:
+        _every_platform_path()
         for preset in names:
             run_mission(scenario_from_dict(warmup_scenario(preset), "warm-up"), record=True)
     return WarmupReport(names, time.perf_counter() - t0, meter.compile_s, meter.n_signatures, ahead)
+
+
+def _every_platform_path() -> None:
+    """Evaluate each platform path kind (one or many times, with and without a speed profile): which
+    path's kernels a mission calls is the scenario's choice, and one warm-up flight drives one path."""
+    import typing
+
+    import numpy as np
+
+    from alight.sim.platform import PathKind, Platform, PlatformConfig, SpeedProfile
+
+    ts = np.linspace(0.0, 2.0, 5)
+    profile = SpeedProfile.brake_stop(1.0, t_s=0.5, decel_mps2=2.0, wait_s=0.5, accel_mps2=1.0)
+    for path in typing.get_args(PathKind):
+        for speed_profile in (None, profile):
+            config = PlatformConfig(path=path, speed_mps=1.0, speed_profile=speed_profile)
+            platform = Platform(config, np.random.default_rng(0))
+            platform.state(0.5)
+            platform.states(ts)
 
 
 def main(argv: list[str] | None = None) -> int:

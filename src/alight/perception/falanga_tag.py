@@ -884,6 +884,10 @@ class FalangaTagDetector:
             np.float64
         )
         self._cross_xy = np.ascontiguousarray(self._cross_P[:, :2])
+        # The cross branch (a quad whose circle is not found: blur, a view at speed) is rare, and a
+        # warm-up flight may not take it. Its one kernel call from Python is made here once, so that a
+        # warm-up compiles it (or loads it from the cache) and no mission compiles it mid-flight.
+        apply_homography(np.eye(3), self._cross_xy)
         # our close-range extension, run only when Alg. 1 finds no quad (see falanga_close.py)
         self._close = CloseRangeCrossDetector(t) if self.config.close_range else None
         self._range_m: float | None = None
@@ -1083,7 +1087,8 @@ class FalangaTagDetector:
         if not ok[:4].all() or ok.sum() < 8:
             return None
         tic = time.perf_counter()
-        good, _, mask, _ = _ransac_subset(self._cross_xy, c, ok, thr, 200, 8)
+        # n_need as a float, as the ring's call passes it: one compiled signature for both
+        good, _, mask, _ = _ransac_subset(self._cross_xy, c, ok, thr, 200, 8.0)
         _lap(times, "ransac", tic, negate="inner")
         if not good or not mask[:4].all():
             return None

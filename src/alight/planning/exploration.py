@@ -319,11 +319,13 @@ class ExplorationRoute:
         # a lower bound on the duration to start the search from: a min-jerk velocity change needs a peak
         # acceleration of at least dv / T
         T = max(0.5, dist / self.cruise_speed_mps, dv / self._max_accel)
-        P0 = np.ascontiguousarray(p0, dtype=np.float64).reshape(1, 3)
-        V0 = np.ascontiguousarray(v0, dtype=np.float64).reshape(1, 3)
-        A0 = np.ascontiguousarray(a0, dtype=np.float64).reshape(1, 3)
-        PF = np.ascontiguousarray(p1, dtype=np.float64).reshape(1, 3)
-        VF = np.ascontiguousarray(v1, dtype=np.float64).reshape(1, 3)
+        # fresh writable copies: a read-only argument (an estimate's frozen state) would be another
+        # compiled signature of the kernel, compiled in the middle of a mission
+        P0 = np.array(p0, dtype=np.float64).reshape(1, 3)
+        V0 = np.array(v0, dtype=np.float64).reshape(1, 3)
+        A0 = np.array(a0, dtype=np.float64).reshape(1, 3)
+        PF = np.array(p1, dtype=np.float64).reshape(1, 3)
+        VF = np.array(v1, dtype=np.float64).reshape(1, 3)
         AF = np.zeros((1, 3))
         check = self._floor_z is not None
         q = np.array([0.0, 0.0, self._floor_z if check else 0.0])
