@@ -9,12 +9,14 @@ The warm-up flies a whole mission of each preset rather than calling each kernel
 flight compiles exactly the signatures (dtypes, layouts, read-only flags) that missions use, and stays
 right when a kernel or its caller changes. The platform starts out of the camera's view and drives
 toward the take-off point, so the flight goes through take-off, exploration, detection, tracking, the
-landing approach down to the close-range detection, and the touchdown (a flight that stopped at the
-approach left the exploration's and the close range's kernels to compile in the middle of the first
-missions that reached them, on their clocks). What a flight cannot meet, because the scenario decides it
-and not the flight phase, is called directly: the kernels of every platform path
-(:func:`_every_platform_path`). Its results are thrown away; it changes no state that a later mission
-sees (every mission builds its own world and pipeline from its scenario).
+landing and the touchdown (a 12 s flight that stopped on the approach left the exploration's kernels to
+compile in the middle of the first missions that searched, on their clocks). What one flight cannot be
+relied on to meet is called directly: here the kernels of every platform path, which the scenario
+chooses (:func:`alight.evaluation.world.call_every_platform_path`); a block's rare branch by the block
+itself when it is built (the falanga tag detector's cross, taken only when the circle is not found). Its
+results are thrown away; it changes no state that a later mission sees (every mission builds its own
+world and pipeline from its scenario). ``tests/test_parallel_compile.py`` flies missions after the
+warm-ups and fails on any kernel signature they call first.
 
 Every ``@njit`` in alight has ``cache=True``, so the compile happens once per install: later processes
 load the machine code from numba's cache (milliseconds per kernel). The cache directory is keyed by the
@@ -130,30 +132,13 @@ def warm_up(presets: Iterable[str], *, compile_first: bool = True) -> WarmupRepo
     names = tuple(dict.fromkeys(presets))
     t0 = time.perf_counter()
     ahead = compile_ahead(names) if compile_first else None
+    from alight.evaluation.world import call_every_platform_path
+
     with compile_meter() as meter:
-        _every_platform_path()
+        call_every_platform_path()
         for preset in names:
             run_mission(scenario_from_dict(warmup_scenario(preset), "warm-up"), record=True)
     return WarmupReport(names, time.perf_counter() - t0, meter.compile_s, meter.n_signatures, ahead)
-
-
-def _every_platform_path() -> None:
-    """Evaluate each platform path kind (one or many times, with and without a speed profile): which
-    path's kernels a mission calls is the scenario's choice, and one warm-up flight drives one path."""
-    import typing
-
-    import numpy as np
-
-    from alight.sim.platform import PathKind, Platform, PlatformConfig, SpeedProfile
-
-    ts = np.linspace(0.0, 2.0, 5)
-    profile = SpeedProfile.brake_stop(1.0, t_s=0.5, decel_mps2=2.0, wait_s=0.5, accel_mps2=1.0)
-    for path in typing.get_args(PathKind):
-        for speed_profile in (None, profile):
-            config = PlatformConfig(path=path, speed_mps=1.0, speed_profile=speed_profile)
-            platform = Platform(config, np.random.default_rng(0))
-            platform.state(0.5)
-            platform.states(ts)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import math
+import typing
 from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -48,7 +49,7 @@ from alight.evaluation.physics import (
 )
 from alight.scenario import Scenario
 from alight.sim.faults import Faults, FrameFate, speed_profile
-from alight.sim.platform import Platform, PlatformConfig
+from alight.sim.platform import PathKind, Platform, PlatformConfig, SpeedProfile
 from alight.sim.quadrotor import (
     CP_K,
     DK_A,
@@ -104,6 +105,20 @@ SEED_PIPELINE = 7
 def mission_seeds(seed: int) -> list[np.random.SeedSequence]:
     """The children of a scenario's seed (:data:`SEED_CHILDREN`)."""
     return np.random.SeedSequence(seed).spawn(SEED_CHILDREN)
+
+
+def call_every_platform_path() -> None:
+    """Evaluate each platform path kind once (one time and many, with and without a speed profile), so
+    that its kernels are compiled or loaded: which path a mission drives is its scenario's choice, and
+    a warm-up flight (``alight.warmup``) drives one."""
+    ts = np.linspace(0.0, 2.0, 5)
+    profile = SpeedProfile.brake_stop(1.0, t_s=0.5, decel_mps2=2.0, wait_s=0.5, accel_mps2=1.0)
+    for path in typing.get_args(PathKind):
+        for changes in (None, profile):
+            config = PlatformConfig(path=path, speed_mps=1.0, speed_profile=changes)
+            platform = Platform(config, np.random.default_rng(0))
+            platform.state(0.5)
+            platform.states(ts)
 
 
 def place_platform(s: Scenario, rng: np.random.Generator) -> Platform:
