@@ -29,7 +29,6 @@ On an empty cache, the kernels the flight calls from Python are first compiled i
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -116,56 +115,36 @@ class WarmupReport:
     their CPU time is not in ``compile_s``."""
 
 
-@dataclass(frozen=True)
-class WarmupFlight:
-    """A warm-up flight of a preset with other blocks: what a campaign's composition of blocks
-    (``alight.mission.blocks``) flies. Its label in a campaign is not a preset name, and its blocks'
-    kernels are not the preset's. Hashable and picklable: it travels to the campaign's sandboxes."""
-
-    preset: str
-    blocks_json: str = "{}"
-    """The scenario's ``blocks:`` section as JSON text (the blocks that are set)."""
-
-    @property
-    def label(self) -> str:
-        return self.preset if self.blocks_json == "{}" else f"{self.preset} with blocks {self.blocks_json}"
+def warmup_scenario(preset: str) -> dict[str, Any]:
+    """The warm-up flight of ``preset``, as scenario data."""
+    return {**_WARMUP_BASE, "preset": preset, "name": f"warm-up {preset}"}
 
 
-def warmup_scenario(preset: str, blocks: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The warm-up flight of ``preset`` (with ``blocks`` instead of some of its own), as scenario data."""
-    data = {**_WARMUP_BASE, "preset": preset, "name": f"warm-up {preset}"}
-    if blocks:
-        data["blocks"] = blocks
-    return data
-
-
-def warm_up(presets: Iterable[str | WarmupFlight], *, compile_first: bool = True) -> WarmupReport:
-    """Fly the warm-up mission of each preset or composition (in the order given, each once); see the
-    module docstring. With ``compile_first``, the listed kernels that numba's cache lacks are first
-    compiled in parallel processes (:func:`alight.parallel_compile.compile_ahead`; a composition counts as
-    its preset there). Raises what the mission raises (a preset that cannot fly here cannot fly a
-    campaign's missions either)."""
+def warm_up(presets: Iterable[str], *, compile_first: bool = True) -> WarmupReport:
+    """Fly the warm-up mission of each preset (in the order given, each once); see the module docstring.
+    With ``compile_first``, the listed kernels that numba's cache lacks are first compiled in parallel
+    processes (:func:`alight.parallel_compile.compile_ahead`). Raises what the mission raises (a preset
+    that cannot fly here cannot fly a campaign's missions either)."""
     from alight.evaluation.runner import run_mission
-    from alight.evaluation.world import call_every_platform_path
     from alight.parallel_compile import compile_ahead
     from alight.scenario import scenario_from_dict
 
-    flights = tuple(dict.fromkeys(p if isinstance(p, WarmupFlight) else WarmupFlight(p) for p in presets))
-    names = tuple(dict.fromkeys(f.preset for f in flights))
+    names = tuple(dict.fromkeys(presets))
     t0 = time.perf_counter()
     ahead = compile_ahead(names) if compile_first else None
+    from alight.evaluation.world import call_every_platform_path
+
     with compile_meter() as meter:
         call_every_platform_path()
-        for flight in flights:
-            blocks = json.loads(flight.blocks_json)
-            run_mission(scenario_from_dict(warmup_scenario(flight.preset, blocks), "warm-up"), record=True)
-    labels = tuple(f.label for f in flights)
-    return WarmupReport(labels, time.perf_counter() - t0, meter.compile_s, meter.n_signatures, ahead)
+        for preset in names:
+            run_mission(scenario_from_dict(warmup_scenario(preset), "warm-up"), record=True)
+    return WarmupReport(names, time.perf_counter() - t0, meter.compile_s, meter.n_signatures, ahead)
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m alight.warmup [PRESET ...]``: fill numba's cache for the presets (default: all) once,
     e.g. right after installing, so no later process pays the compile; prints what it took as JSON."""
+    import json
     import sys
 
     from alight.mission.presets import PRESETS

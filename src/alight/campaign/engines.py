@@ -40,9 +40,9 @@ worker killed with its process group, or before its sandbox learnt the directory
 pid, not the sandbox's, names the directory, because the owner exists before the sandbox and outlives it.
 
 A sandbox running the default mission function (or its views variant, ``fly_mission_views``) warms up
-before it reports ready (:func:`alight.warmup.warm_up`: a flight of each of the campaign's presets, and
-of each composition of blocks as its preset with its blocks, compiles every numba kernel they use), so
-compile time never lands in a mission's ``wall_time_s``, block timers or deadline.
+before it reports ready (:func:`alight.warmup.warm_up`: a short flight of each of the campaign's presets
+compiles every numba kernel they use), so compile time never lands in a mission's ``wall_time_s``, block
+timers or deadline.
 
 Sandboxes need ``fork``/``exec`` with inherited file descriptors (``pass_fds``): Linux and macOS.
 
@@ -76,7 +76,6 @@ from typing import Any
 
 from alight.errors import AlightError, ConfigError
 from alight.process_stats import max_rss_mib
-from alight.warmup import WarmupFlight
 
 DEFAULT_MISSION_FN = "alight.campaign.engines:fly_mission"
 VIEWS_MISSION_FN = "alight.campaign.engines:fly_mission_views"
@@ -271,11 +270,7 @@ def worker_main(fd: int) -> None:
 
 
 def _serve(
-    conn: Connection,
-    sys_path: list[str] | None,
-    fn_name: str,
-    scratch_root: str | None,
-    warmup: list[str | WarmupFlight],
+    conn: Connection, sys_path: list[str] | None, fn_name: str, scratch_root: str | None, warmup: list[str]
 ) -> None:
     if sys_path:
         sys.path[:] = list(sys_path)
@@ -364,9 +359,7 @@ _SWEPT = threading.Event()
 class Sandbox:
     """A child process that flies missions; owned by one thread of one process."""
 
-    def __init__(
-        self, fn_spec: str, sys_path: list[str] | None, warmup: tuple[str | WarmupFlight, ...] = ()
-    ) -> None:
+    def __init__(self, fn_spec: str, sys_path: list[str] | None, warmup: tuple[str, ...] = ()) -> None:
         if not _SWEPT.is_set():  # once per owning process, on the machine where its sandboxes run
             _SWEPT.set()
             sweep_stale_scratch()
@@ -497,7 +490,7 @@ class LocalEngine:
         self,
         workers: int | None = None,
         fn_spec: str = DEFAULT_MISSION_FN,
-        warmup: tuple[str | WarmupFlight, ...] = (),
+        warmup: tuple[str, ...] = (),
         memory_limit_mib: float | None = None,
     ) -> None:
         n = (os.cpu_count() or 1) if workers is None else workers
@@ -506,8 +499,7 @@ class LocalEngine:
         self.workers = n
         self.fn_spec = fn_spec
         self.warmup = warmup
-        """Presets (and compositions of blocks) each sandbox warms up before it reports ready (see
-        alight.warmup)."""
+        """Presets each sandbox warms up before it reports ready (see alight.warmup)."""
         self.memory_limit_mib = _check_limit(memory_limit_mib)
         """A sandbox whose resident-memory high-water mark is over this after a mission is replaced by a
         fresh one (None: never)."""
@@ -598,7 +590,7 @@ def _dask_task(
     task: MissionTask,
     fn_spec: str,
     sys_path: list[str] | None,
-    warmup: tuple[str | WarmupFlight, ...] = (),
+    warmup: tuple[str, ...] = (),
     memory_limit_mib: float | None = None,
 ) -> MissionOutcome:
     """Runs in a Dask worker thread: fly ``task`` in this thread's sandbox with the task's deadline."""
@@ -690,7 +682,7 @@ class DaskEngine:
         scheduler: str | None = None,
         workers: int | None = None,
         fn_spec: str = DEFAULT_MISSION_FN,
-        warmup: tuple[str | WarmupFlight, ...] = (),
+        warmup: tuple[str, ...] = (),
         memory_limit_mib: float | None = None,
     ) -> None:
         if scheduler and workers is not None:
@@ -820,7 +812,7 @@ def make_engine(
     workers: int | None = None,
     scheduler: str | None = None,
     fn_spec: str = DEFAULT_MISSION_FN,
-    warmup: tuple[str | WarmupFlight, ...] = (),
+    warmup: tuple[str, ...] = (),
     memory_limit_mib: float | None = None,
 ) -> LocalEngine | DaskEngine:
     """The engine ``name``; ``warmup``: presets every sandbox warms up before its first mission;

@@ -14,7 +14,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Collection, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,7 +52,6 @@ from alight.campaign.store import (
 from alight.campaign.summary import write_summary
 from alight.errors import AlightError, ConfigError, InputError
 from alight.evaluation.result import OUTCOMES
-from alight.warmup import WarmupFlight
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
 _RESULT_KEYS = tuple(
@@ -215,22 +214,6 @@ VIEWS_MARK = "report.html"
 """A failure's views are complete once its report.html is written (it is written last)."""
 FLOWN_FAILURES = tuple(o for o in OUTCOMES if o not in ("landed", "error"))
 """Outcomes of a mission that flew and did not land: the failures that have views (an error has no log)."""
-
-
-def warmup_flights(campaign: Campaign, labels: Collection[str] | None = None) -> tuple[WarmupFlight, ...]:
-    """The warm-up flight of each of the campaign's preset labels (or of ``labels`` only): the preset and
-    the blocks of its first mission. A composition of blocks is a label (``apriltag-aruco-pnp-ekf``), not a
-    preset a warm-up knows; its flight is its preset with its blocks, so its kernels are compiled too."""
-    flights = []
-    for label in campaign.presets:
-        if labels is not None and label not in labels:
-            continue
-        first = next((m for m in campaign.missions if m.preset == label), None)
-        if first is None:
-            continue
-        blocks = {k: v for k, v in (first.scenario.get("blocks") or {}).items() if v is not None}
-        flights.append(WarmupFlight(first.scenario["preset"], json.dumps(blocks, sort_keys=True)))
-    return tuple(dict.fromkeys(flights))
 
 
 def views_wanted(
@@ -511,7 +494,7 @@ def run_campaign(
         "memory_limit_mib": memory_limit_mib,
     }
     runner = make_engine(
-        engine, fn_spec=fn_spec, warmup=warmup_flights(campaign) if warmup else (), **engine_options
+        engine, fn_spec=fn_spec, warmup=tuple(campaign.presets) if warmup else (), **engine_options
     )
 
     out = Path(out_dir) if out_dir is not None else Path("runs") / campaign.name
@@ -594,11 +577,10 @@ def run_campaign(
         if views_spec is not None and isinstance(views_per_cell, int):
             wanted = views_wanted(out, missions, store.rows, views_per_cell)
             if wanted:
-                presets = {m.preset for m in wanted}
-                flights = warmup_flights(campaign, presets)
+                presets = tuple(p for p in campaign.presets if any(m.preset == p for m in wanted))
                 views_warmup = warmup or views_spec in SIMULATED_MISSION_FNS
                 views_runner = make_engine(
-                    engine, fn_spec=views_spec, warmup=flights if views_warmup else (), **engine_options
+                    engine, fn_spec=views_spec, warmup=presets if views_warmup else (), **engine_options
                 )
                 try:
                     stopped = _fly_views(out, campaign, wanted, views_runner, progress, result)
