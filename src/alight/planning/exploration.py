@@ -32,6 +32,7 @@ from alight.planning.min_jerk import (
     InputFeasibility,
     MinJerkTrajectory,
     _evaluate_kernel,
+    _states,
 )
 from alight.types import GRAVITY_MPS2, FloatArray
 
@@ -319,13 +320,10 @@ class ExplorationRoute:
         # a lower bound on the duration to start the search from: a min-jerk velocity change needs a peak
         # acceleration of at least dv / T
         T = max(0.5, dist / self.cruise_speed_mps, dv / self._max_accel)
-        # fresh writable copies: a read-only argument (an estimate's frozen state) would be another
-        # compiled signature of the kernel, compiled in the middle of a mission
-        P0 = np.array(p0, dtype=np.float64).reshape(1, 3)
-        V0 = np.array(v0, dtype=np.float64).reshape(1, 3)
-        A0 = np.array(a0, dtype=np.float64).reshape(1, 3)
-        PF = np.array(p1, dtype=np.float64).reshape(1, 3)
-        VF = np.array(v1, dtype=np.float64).reshape(1, 3)
+        # _states: (1, 3) writable arrays whatever the caller hands in (a read-only argument, an estimate's
+        # frozen state, would be another compiled signature of the kernel, compiled mid-mission)
+        P0, V0, A0 = _states(p0, "p0"), _states(v0, "v0"), _states(a0, "a0")
+        PF, VF = _states(p1, "p1"), _states(v1, "v1")
         AF = np.zeros((1, 3))
         check = self._floor_z is not None
         q = np.array([0.0, 0.0, self._floor_z if check else 0.0])
