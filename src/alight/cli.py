@@ -49,7 +49,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     out = Path(args.out)
     exports = _fly_exports(args, scenario, out)
     if not args.no_warmup:
-        _warm_up_before_the_clock(scenario.preset)
+        _warm_up_before_the_clock(scenario)
     try:
         run = fly_to_dir(scenario, out, replay=args.replay, frame_sinks=[e for e, _ in exports])
     except BaseException:
@@ -68,13 +68,16 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     return 0
 
 
-def _warm_up_before_the_clock(preset: str) -> None:
-    """Compile (or load from numba's cache) the preset's kernels before the mission's clock starts, so
-    ``wall_time_s`` and the block times in result.json hold no compile; says on stderr what it took."""
-    from alight.warmup import warm_up
+def _warm_up_before_the_clock(scenario: Any) -> None:
+    """Compile (or load from numba's cache) the kernels of the scenario's preset and of its blocks (the
+    presets that fly them) before the mission's clock starts, so ``wall_time_s`` and the block times in
+    result.json hold no compile; says on stderr what it took."""
+    from alight.warmup import presets_to_warm_up, warm_up
 
+    presets = presets_to_warm_up([scenario.model_dump(mode="json")])
+    preset = ", ".join(presets)
     try:
-        rep = warm_up([preset])
+        rep = warm_up(presets)
     except Exception as err:  # the mission itself will say what is wrong; its compile then is on its clock
         print(f"warm-up ({preset}) failed, the mission's clock may hold the compile: {err}", file=sys.stderr)
         return

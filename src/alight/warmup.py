@@ -29,12 +29,15 @@ On an empty cache, the kernels the flight calls from Python are first compiled i
 
 from __future__ import annotations
 
+import json
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
+
+from alight.errors import AlightError
 
 if TYPE_CHECKING:
     from alight.parallel_compile import CompileAheadReport
@@ -118,6 +121,54 @@ class WarmupReport:
 def warmup_scenario(preset: str) -> dict[str, Any]:
     """The warm-up flight of ``preset``, as scenario data."""
     return {**_WARMUP_BASE, "preset": preset, "name": f"warm-up {preset}"}
+
+
+def presets_to_warm_up(scenarios: Iterable[Mapping[str, Any]]) -> tuple[str, ...]:
+    """The presets whose warm-up flights compile the kernels that ``scenarios`` (scenario data) fly, in
+    the order first met.
+
+    Each scenario's own preset; and for each block it flies in place of its preset's (a campaign's block
+    set, a ``blocks:`` key), a preset that flies that block at the same stage, unless one chosen already
+    does: a block's kernels are compiled by a flight of a preset that has it. Why not fly each composition
+    itself: blocks.yaml's 62 compositions took 1,114 s to warm up that way (many never find their pad and
+    fly the whole minute) for about 25 s of compile, and compositions that share blocks compile the same
+    kernels. A block that no preset flies is left to its first mission (the apriltag and aruco detectors
+    and the apriltag pad are OpenCV's and have no kernels; ``nfold`` is flown inside ``sdu``). A scenario
+    that does not validate is left out: its missions report what is wrong."""
+    from alight.mission.blocks import STAGES, resolve_blocks
+    from alight.mission.presets import PRESETS
+    from alight.scenario import Scenario
+
+    blocks_of: dict[str, dict[str, str]] = {}  # preset -> stage -> block name, built when needed
+
+    def preset_blocks(preset: str) -> dict[str, str]:
+        if preset not in blocks_of:
+            eff = resolve_blocks(Scenario.model_validate({"preset": preset}), load_camera=False)
+            blocks_of[preset] = {stage: eff[stage].name for stage in STAGES}
+        return blocks_of[preset]
+
+    chosen: dict[str, None] = {}
+    seen: set[str] = set()
+    for data in scenarios:
+        preset, blocks = data.get("preset", "groundtruth"), data.get("blocks") or {}
+        key = json.dumps([preset, blocks], sort_keys=True, default=str)
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            scenario = Scenario.model_validate({"preset": preset, "blocks": blocks})
+            eff = resolve_blocks(scenario, load_camera=False)
+        except (ValueError, AlightError):  # pydantic's ValidationError is a ValueError
+            continue
+        chosen.setdefault(preset, None)
+        for stage in STAGES:
+            name = eff[stage].name
+            if name == preset_blocks(preset)[stage] or any(preset_blocks(p)[stage] == name for p in chosen):
+                continue
+            owner = next((p for p in PRESETS if preset_blocks(p)[stage] == name), None)
+            if owner is not None:
+                chosen[owner] = None
+    return tuple(chosen)
 
 
 def warm_up(presets: Iterable[str], *, compile_first: bool = True) -> WarmupReport:

@@ -39,7 +39,7 @@ ALLOWED: dict[str, set[str]] = {
     # the bridge compiles the pipeline's kernels (warmup) before it takes the link
     "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "warmup", "__init__"},
     # compiles the numba kernels before a worker reports ready, by flying short missions
-    "warmup": {"scenario", "mission", "evaluation", "parallel_compile"},
+    "warmup": {"errors", "scenario", "mission", "evaluation", "parallel_compile"},
     # compiles the listed kernels in helper processes before the warm-up flight; writes that list by
     # recording the warm-up flights (mission: the preset names)
     "parallel_compile": {"warmup", "numba_cache", "mission", "process_stats"},

@@ -52,6 +52,7 @@ from alight.campaign.store import (
 from alight.campaign.summary import write_summary
 from alight.errors import AlightError, ConfigError, InputError
 from alight.evaluation.result import OUTCOMES
+from alight.warmup import presets_to_warm_up
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
 _RESULT_KEYS = tuple(
@@ -493,9 +494,9 @@ def run_campaign(
         "scheduler": scheduler,
         "memory_limit_mib": memory_limit_mib,
     }
-    runner = make_engine(
-        engine, fn_spec=fn_spec, warmup=tuple(campaign.presets) if warmup else (), **engine_options
-    )
+    # a block set's label is not a preset: the sandboxes warm up the presets that fly its blocks
+    to_warm = presets_to_warm_up(m.scenario for m in campaign.missions) if warmup else ()
+    runner = make_engine(engine, fn_spec=fn_spec, warmup=to_warm, **engine_options)
 
     out = Path(out_dir) if out_dir is not None else Path("runs") / campaign.name
     try:
@@ -577,11 +578,9 @@ def run_campaign(
         if views_spec is not None and isinstance(views_per_cell, int):
             wanted = views_wanted(out, missions, store.rows, views_per_cell)
             if wanted:
-                presets = tuple(p for p in campaign.presets if any(m.preset == p for m in wanted))
                 views_warmup = warmup or views_spec in SIMULATED_MISSION_FNS
-                views_runner = make_engine(
-                    engine, fn_spec=views_spec, warmup=presets if views_warmup else (), **engine_options
-                )
+                presets = presets_to_warm_up(m.scenario for m in wanted) if views_warmup else ()
+                views_runner = make_engine(engine, fn_spec=views_spec, warmup=presets, **engine_options)
                 try:
                     stopped = _fly_views(out, campaign, wanted, views_runner, progress, result)
                 except (AlightError, OSError) as err:
