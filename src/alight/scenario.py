@@ -470,6 +470,36 @@ class RangeFinderSpec(_Strict):
         return self
 
 
+class OpticalFlowSpec(_Strict):
+    """A downward optical-flow module with its own ranger (ARK Flow / Holybro H-Flow class,
+    ``alight.sim.sensors.OpticalFlowConfig``): it measures the vehicle's velocity relative to the surface
+    under it, the deck in a landing. The pipeline reads it in the committed descent, where the camera no
+    longer sees the whole pad: a deck that brakes or speeds up under the last half metre sends the
+    vehicle around (``mission.land_commit_max_slip_mps``)."""
+
+    rate_hz: RateHz = 50.0
+    """Sample rate (Hz); 200 Hz divided by a whole number (the simulator's sensor tick)."""
+    noise_rad_s: NonNegFloat = 0.05
+    """White noise on each flow axis (rad/s)."""
+    min_range_m: NonNegFloat = 0.08
+    """Closest surface the flow sensor resolves (m)."""
+    max_range_m: PositiveFloat = 4.0
+    """Farthest surface its ranger measures (m)."""
+    range_noise_m: NonNegFloat = 0.01
+    """White noise on its distance (m)."""
+
+    @model_validator(mode="after")
+    def _checked(self) -> OpticalFlowSpec:
+        if not self.max_range_m > self.min_range_m:
+            raise ValueError("optical_flow.max_range_m must be above min_range_m")
+        ticks = 200.0 / self.rate_hz
+        if abs(ticks - round(ticks)) > 1e-9:
+            raise ValueError(
+                f"optical_flow.rate_hz must divide 200 Hz (200, 100, 50, 40, 25, ...), got {self.rate_hz:g}"
+            )
+        return self
+
+
 class MissionSpec(_Strict):
     """Overrides of the mission logic's parameters (``alight.mission.state_machine.MissionConfig``, which
     holds every default); None: the block's default, or the preset's where a preset sets one."""
@@ -537,6 +567,10 @@ class MissionSpec(_Strict):
     land_commit_speed_change_mps: PositiveFloat | None = None
     """Go-around below the commit height (above a quarter of it) when the platform estimate's speed has
     changed by more than this since the commit (m/s); default 0.5."""
+    land_commit_max_slip_mps: PositiveFloat | None = None
+    """Go-around when, below the commit height, the optical-flow module (``optical_flow:``) measures the
+    feet moving faster than this across the deck (m/s); default 0.5. Without a module nothing is
+    measured and the check does not act."""
     land_commit_ground_margin_m: PositiveFloat | None = None
     """Go-around when, below the commit height, the range finder reads more than this beyond the height
     over the estimated deck: the ground is below, not the deck (m). None: the preset's, else 0.2 m (every
@@ -818,6 +852,8 @@ class Scenario(_Strict):
     controller: ControllerSpec = Field(default_factory=ControllerSpec)
     contact: ContactSpec = Field(default_factory=ContactSpec)
     rangefinder: RangeFinderSpec = Field(default_factory=RangeFinderSpec)
+    optical_flow: OpticalFlowSpec | None = None
+    """A downward optical-flow module (``{}`` for the defaults); None: the vehicle has none."""
     energy: EnergySpec = Field(default_factory=EnergySpec)
     airframe: str = "f450"
     """The vehicle, for the simulator and the controller alike: a packaged airframe (``f450``, paper

@@ -14,7 +14,14 @@ import pytest
 
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.interfaces.fake_autopilot import Capture, FakeAutopilot
-from alight.interfaces.mavlink_bridge import MASK_P_YAW, MASK_RATES_THRUST, BridgeConfig, MavlinkBridge, Phase
+from alight.interfaces.mavlink_bridge import (
+    MASK_P_YAW,
+    MASK_RATES_THRUST,
+    BridgeConfig,
+    MavlinkBridge,
+    Phase,
+    optical_flow_rad_B,
+)
 from alight.mission.presets import build_preset
 from alight.scenario import load_scenario
 from alight.types import Command
@@ -193,6 +200,43 @@ def test_receive_path_drops_bad_fields() -> None:
                 v = np.asarray(a, dtype=float)
                 # a range is +-inf out of range (ROS REP 117, as the sensor reports it), never NaN
                 assert not np.any(np.isnan(v)) if name == "on_range" else np.all(np.isfinite(v))
+
+
+def test_optical_flow_rad_becomes_flow_along_the_flu_body_axes() -> None:
+    """MAVLink's integrated_y (around the FRD y axis) is positive for a motion along +x: over the ground
+    at 2 m, moving forward at 1 m/s for 20 ms, integrated_y = 0.01 rad; alight's flow along x_B is
+    -v_x / d = -0.5 rad/s. A roll (right-hand about x) gives a positive integrated_x; alight's flow along
+    y_B is -w_x."""
+    mav = FakeAutopilot().mav
+    fwd = mav.optical_flow_rad_encode(1_000_000, 0, 20_000, 0.0, 0.01, 0, 0, 0, 0, 255, 0, 2.0)
+    np.testing.assert_allclose(optical_flow_rad_B(fwd), [-0.5, 0.0])
+    roll = mav.optical_flow_rad_encode(1_000_000, 0, 20_000, 0.004, 0.0, 0, 0, 0, 0, 255, 0, 2.0)
+    np.testing.assert_allclose(optical_flow_rad_B(roll), [0.0, -0.2])
+    for bad in (
+        mav.optical_flow_rad_encode(1_000_000, 0, 20_000, 0.0, 0.01, 0, 0, 0, 0, 0, 0, 2.0),  # quality 0
+        mav.optical_flow_rad_encode(1_000_000, 0, 0, 0.0, 0.01, 0, 0, 0, 0, 255, 0, 2.0),  # no integration
+        mav.optical_flow_rad_encode(1_000_000, 0, 20_000, math.nan, 0.01, 0, 0, 0, 0, 255, 0, 2.0),
+        mav.optical_flow_rad_encode(1_000_000, 0, 20_000, 0.0, 0.01, 0, 0, 0, 0, 255, 0, -1.0),  # no range
+        mav.optical_flow_rad_encode(1_000_000, 0, 20_000, 0.0, 5.0, 0, 0, 0, 0, 255, 0, 2.0),  # 250 rad/s
+    ):
+        assert optical_flow_rad_B(bad) is None
+
+
+def test_the_bridge_feeds_optical_flow_to_the_pipeline() -> None:
+    bridge, cap, cam = make_bridge()
+    ap = FakeAutopilot()
+    fly(bridge, cap, cam, ap, 0.5)
+    pipe = bridge.pipeline
+    assert pipe.ego_estimator.initialized and pipe.deck_slip_W is None
+    t_us = int(bridge.t_ap * 1e6)
+    ok = ap.mav.optical_flow_rad_encode(t_us, 0, 20_000, 0.0, 0.01, 0, 0, 0, 0, 255, 0, 2.0)
+    bridge.feed_bytes(ap.encode(ok))
+    assert bridge.stats.rejected.get("OPTICAL_FLOW_RAD", 0) == 0
+    # hovering level, 2 m up: 0.5 rad/s of flow is 1 m/s forward over the surface (in W, along the heading)
+    assert pipe.deck_slip_mps(bridge.t_ap) == pytest.approx(1.0, abs=0.1)
+    stale = ap.mav.optical_flow_rad_encode(t_us, 0, 20_000, 0.0, 0.01, 0, 0, 0, 0, 255, 0, 2.0)
+    bridge.feed_bytes(ap.encode(stale))  # the same timestamp again
+    assert bridge.stats.rejected["OPTICAL_FLOW_RAD"] == 1
 
 
 def test_short_fuzz_run() -> None:

@@ -497,6 +497,30 @@ def test_a_committed_descent_over_the_ground_beside_the_deck_goes_around() -> No
     assert m.step(3.0, high, target(3.0), CFG.land_commit_height_m + 0.5 + PAD_Z).mode is Mode.LAND
 
 
+def test_a_committed_descent_over_a_slipping_deck_goes_around() -> None:
+    """The optical-flow module measures the feet moving across the deck (a deck that brakes under the last
+    half metre): a go-around, at any height of the committed descent; slip within the limit, or no
+    sample, or above the commit height: the descent goes on."""
+    limit = CFG.land_commit_max_slip_mps
+    assert limit == 0.5  # on by default
+    low = ego(p=(5.0, 0, PAD_Z + 0.1), v=(1.0, 0, -0.4))  # 10 cm over the deck: under every other gate
+    m = at_mode(Mode.LAND)
+    m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
+    assert m.step(3.1, low, target(3.1), None, deck_slip_mps=limit - 0.05).mode is Mode.LAND
+    assert m.step(3.12, low, target(3.12), None, deck_slip_mps=None).mode is Mode.LAND
+    status = m.step(3.14, low, target(3.14), None, deck_slip_mps=limit + 0.05)
+    assert status.mode is Mode.GO_AROUND
+    assert status.reason == "the deck slipped under the committed descent (optical flow)"
+    # off with None
+    m = at_mode(Mode.LAND, dataclasses.replace(CFG, land_commit_max_slip_mps=None))
+    m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
+    assert m.step(3.1, low, target(3.1), None, deck_slip_mps=2.0).mode is Mode.LAND
+    # not committed (above the commit height): the descent's own gates decide
+    m = at_mode(Mode.LAND)
+    high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5), v=(1.0, 0, -0.4))
+    assert m.step(3.0, high, target(3.0), None, deck_slip_mps=2.0).mode is Mode.LAND
+
+
 def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> None:
     m = at_mode(Mode.GO_AROUND)
     assert m.go_arounds == 1
@@ -596,6 +620,7 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_a_committed_descent_without_touchdown_goes_around,
         test_a_platform_speed_change_under_a_committed_descent_goes_around,
         test_a_committed_descent_over_the_ground_beside_the_deck_goes_around,
+        test_a_committed_descent_over_a_slipping_deck_goes_around,
         test_go_around_returns_to_track_at_height_and_aborts_after_too_many,
         test_go_around_without_an_estimate_waits_for_the_exploration_altitude,
         test_final_action_hover_climbs_holds_and_completes,

@@ -1,7 +1,8 @@
 """The runner: steps the simulated world and a preset's pipeline together, and judges the outcome.
 
 Rates (simulated clock): dynamics and the body-rate loop at 1 kHz (fused, ``physics.advance``), IMU at
-200 Hz (the base tick), odometry at 40 Hz, range finder at 100 Hz, controller at 100 Hz, mission and
+200 Hz (the base tick), odometry at 40 Hz, range finder at 100 Hz, optical flow (when the scenario has a
+module) at its rate, controller at 100 Hz, mission and
 planner at the planner's rate (50 Hz), perception at the scenario's rate with its latency, log at 50 Hz.
 
 The world (physics, contact and its judging, sensors, camera, faults, randomness) is
@@ -96,6 +97,7 @@ def run_mission(
     every_control = round(1.0 / (100.0 * TICK_DT))
     every_mission = max(1, round(1.0 / (preset.planner_rate_hz * TICK_DT)))
     every_log = round(1.0 / (50.0 * TICK_DT))
+    every_flow = world.flow_every_ticks  # 0: no optical-flow module
     camera = world.renderer is not None
     render_all = (
         render_every_frame or (frame_sink is not None and frame_wanted is None) or faults.remembers_frames
@@ -135,6 +137,10 @@ def run_mission(
             continue
         if k % every_range == 0:
             pipeline.on_range(t, world.range_m())
+        if every_flow and k % every_flow == 0:
+            flow = world.flow_sample()
+            if flow is not None:
+                pipeline.on_flow(flow.t, flow.flow_B_rad_s, flow.distance_m)
         for fix in world.telemetry_arrivals():
             pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
         world.capture()

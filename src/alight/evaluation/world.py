@@ -69,7 +69,17 @@ from alight.sim.quadrotor import (
     pack_params,
 )
 from alight.sim.render import Renderer, RenderOptions
-from alight.sim.sensors import Imu, ImuConfig, Odometry, OdometryConfig, RangeFinder, RangeFinderConfig
+from alight.sim.sensors import (
+    FlowSample,
+    Imu,
+    ImuConfig,
+    Odometry,
+    OdometryConfig,
+    OpticalFlowConfig,
+    OpticalFlowSensor,
+    RangeFinder,
+    RangeFinderConfig,
+)
 from alight.sim.telemetry import PlatformTelemetry, TelemetryConfig, TelemetryFix
 from alight.sim.textures import DistractorSpec, make_ground_texture
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled
@@ -94,11 +104,11 @@ CONTROL_DT = 0.01  # the command ticks: a physics batch ends at each
 WIND_DT = 0.01  # the wind is updated where the physics batches start: at the 100 Hz control ticks
 LIFT_OFF_M = 0.005  # feet this far above the surface they touched, touching nothing: a lift-off (bounce)
 
-SEED_CHILDREN = 10
+SEED_CHILDREN = 11
 """Children of the scenario seed, by index: 0 platform placement, 1 rendering, 2 wind, 3 IMU,
 4 odometry, 5 range finder, 6 ground-truth perception, 7 the pipeline's own draws, 8 faults,
-9 platform telemetry. ``spawn(10)[:9]`` equals ``spawn(9)``: a component added at the end leaves every
-other component's random numbers as they were."""
+9 platform telemetry, 10 optical flow. ``spawn(10)[:9]`` equals ``spawn(9)``: a component added at the
+end leaves every other component's random numbers as they were."""
 SEED_PIPELINE = 7
 
 
@@ -295,6 +305,23 @@ class World:
             tel = TelemetryConfig(**s.platform.telemetry.model_dump())
             self.telemetry = PlatformTelemetry(tel, np.random.default_rng(seeds[9]))
         self._tel_pending: deque[TelemetryFix] = deque()
+        self.optical_flow: OpticalFlowSensor | None = None
+        self.flow_every_ticks = 0
+        """Ticks between two optical-flow samples (0: no module)."""
+        if s.optical_flow is not None:
+            of = s.optical_flow
+            self.optical_flow = OpticalFlowSensor(
+                OpticalFlowConfig(
+                    rate_hz=of.rate_hz,
+                    noise_rad_s=of.noise_rad_s,
+                    min_range_m=of.min_range_m,
+                    max_range_m=of.max_range_m,
+                    range_noise_m=of.range_noise_m,
+                    origin_B=(0.0, 0.0, -airframe.gear_height),
+                ),
+                np.random.default_rng(seeds[10]),
+            )
+            self.flow_every_ticks = round(1.0 / (of.rate_hz * TICK_DT))
 
         self.renderer: Renderer | None = None
         if preset.uses_camera:
@@ -545,6 +572,19 @@ class World:
         )  # fmt: skip
         self.last_range_m = self.faults.range(self.t, r)
         return self.last_range_m
+
+    def flow_sample(self) -> FlowSample | None:
+        """An optical-flow sample now (None: no module, or the surface out of its range). Draws from the
+        module's noise."""
+        if self.optical_flow is None:
+            return None
+        k, x, tr = self.k, self.x, self.truths
+        return self.optical_flow.measure_at(
+            self.t,
+            (x[SL_P], x[SL_V], x[SL_Q], x[SL_W]),
+            (tr.p_WP[k], tr.v_WP[k], float(tr.yaw[k]), float(tr.yaw_rate[k])),
+            self.scenario.platform.pad_size_m,
+        )
 
     def telemetry_arrivals(self) -> tuple[TelemetryFix, ...]:
         """The platform's GNSS fixes that reach the aircraft now (stamped with the time of the fix): a fix

@@ -4,7 +4,8 @@ computer beside a PX4 or ArduPilot flight controller.
 Inputs (validated field by field, converted NED/FRD -> ENU/FLU by :mod:`alight.interfaces.frames`, then fed
 to the pipeline): HIGHRES_IMU (or SCALED_IMU) -> ``on_imu``; ODOMETRY (or LOCAL_POSITION_NED with the
 latest ATTITUDE_QUATERNION / ATTITUDE) -> ``on_odometry``; DISTANCE_SENSOR facing down -> ``on_range``;
-camera frames -> ``on_image``. The pipeline runs on the autopilot's clock: every sample is stamped with
+OPTICAL_FLOW_RAD (a downward flow module, when the autopilot streams it) -> ``on_flow``; camera frames
+-> ``on_image``. The pipeline runs on the autopilot's clock: every sample is stamped with
 the autopilot's ``time_usec`` / ``time_boot_ms``, and ``step`` (planner rate) and ``command`` (100 Hz)
 run when that clock crosses their period (each IMU message advances it).
 
@@ -409,6 +410,16 @@ class MavlinkBridge:
         if self.pipeline.ego_estimator.initialized:
             self.pipeline.on_range(t, distance_sensor_range_m(msg))
 
+    def _on_optical_flow_rad(self, msg: Any) -> None:
+        t = msg.time_usec * 1e-6
+        flow = optical_flow_rad_B(msg)
+        if flow is None or not self._fresh("flow", t):
+            self.stats.bad("OPTICAL_FLOW_RAD")
+            return
+        self.stats.ok("OPTICAL_FLOW_RAD")
+        if self.pipeline.ego_estimator.initialized:
+            self.pipeline.on_flow(t, flow, float(msg.distance))
+
     def _on_extended_sys_state(self, msg: Any) -> None:
         if msg.landed_state in (0, 1, 2, 3, 4):
             self.landed_state = int(msg.landed_state)
@@ -771,6 +782,30 @@ def distance_sensor_range_m(msg: Any) -> float:
     return cm / 100.0
 
 
+MAX_FLOW_RATE_RAD_S = 50.0
+"""An OPTICAL_FLOW_RAD whose mean flow rate is above this (rad/s) is not a reading but garbage."""
+
+
+def optical_flow_rad_B(msg: Any) -> FloatArray | None:
+    """An OPTICAL_FLOW_RAD sample as the pipeline takes it (``Pipeline.on_flow``): the mean flow rate over
+    the integration along x_B and y_B of alight's FLU body frame (rad/s, not gyro-compensated), or None
+    for a sample to drop (quality 0, no integration time, no distance, a field not finite or out of
+    range). MAVLink's integrated_x is the flow *around* the FRD x axis (a right-hand rotation about x or
+    a motion along -y gives a positive flow), integrated_y around the FRD y axis (a rotation about y or
+    a motion along +x); alight's flow along x_B is minus the rate around y_FRD, along y_B minus the rate
+    around x_FRD."""
+    dt = msg.integration_time_us * 1e-6
+    ix, iy, d = float(msg.integrated_x), float(msg.integrated_y), float(msg.distance)
+    if not (0.0 < dt <= 1.0 and msg.quality > 0 and math.isfinite(ix) and math.isfinite(iy)):
+        return None
+    if not (math.isfinite(d) and d > 0.0):
+        return None
+    rate = np.array([-iy / dt, -ix / dt])
+    if float(np.max(np.abs(rate))) > MAX_FLOW_RATE_RAD_S:
+        return None
+    return rate
+
+
 def cam_clock_is_companion(camera: CameraSource | None) -> bool:
     return camera is not None and getattr(camera, "clock", "autopilot") == "companion"
 
@@ -783,6 +818,7 @@ _HANDLERS = {
     "ODOMETRY": MavlinkBridge._on_odometry,
     "LOCAL_POSITION_NED": MavlinkBridge._on_local_position,
     "DISTANCE_SENSOR": MavlinkBridge._on_distance,
+    "OPTICAL_FLOW_RAD": MavlinkBridge._on_optical_flow_rad,
     "EXTENDED_SYS_STATE": MavlinkBridge._on_extended_sys_state,
     "NAMED_VALUE_INT": MavlinkBridge._on_named_value_int,
     "TIMESYNC": MavlinkBridge._on_timesync,

@@ -342,6 +342,9 @@ class EmulatedAutopilot:
             # The emulator has no MAVLink stream for the platform's GNSS fix, so it would not reach the
             # companion: refuse it rather than fly without it.
             raise ConfigError("platform.telemetry: not available through alight sitl (no MAVLink stream)")
+        if scenario.optical_flow is not None:
+            # likewise: the emulator does not send OPTICAL_FLOW_RAD
+            raise ConfigError("optical_flow: not available through alight sitl (no MAVLink stream)")
         self.config = config
         self.world = World.for_scenario(scenario, airframe)
         self.airframe = self.world.airframe

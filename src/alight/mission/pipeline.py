@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from alight.control import TiltLimited
 from alight.estimation import EgoFed, PixelMeasured, PositionResetting, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
+from alight.estimation.optical_flow import horizontal_slip_W
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
@@ -47,6 +48,8 @@ if TYPE_CHECKING:  # the Protocols, for annotations only
     from alight.perception import Detector, Geolocator
 
 _ZERO3 = np.zeros(3)
+FLOW_MAX_AGE_S = 0.1
+"""An optical-flow sample older than this (s) is not read (a module at 50 Hz gives five in that time)."""
 
 
 class EgoHistory:
@@ -216,6 +219,11 @@ class Pipeline:
         self.range_raw_m: float | None = None
         """The latest reading as the sensor reported it (``-inf``: closer than its minimum range)."""
         self._ranges: list[float | None] = []
+        self.deck_slip_W: FloatArray | None = None
+        """The feet's horizontal velocity relative to the surface under them (m/s, (2,) in W), from the
+        last optical-flow sample; None before one (a vehicle without a module)."""
+        self.deck_slip_t = -math.inf
+        """Time of that sample (s)."""
         self.last_reference: Reference | None = None
         self.last_measurement: PlatformMeasurement | None = None
         self._ego: EgoState | None = None
@@ -294,6 +302,34 @@ class Pipeline:
         full = len(valid) == len(self._ranges)
         self.range_m = max(valid) if full else None
         self.range_low_m = min(valid) if full else None
+
+    def on_flow(self, t: float, flow_B_rad_s: FloatArray, distance_m: float) -> None:
+        """An optical-flow sample at ``t``: the apparent angular rate of the surface under the module along
+        x_B and y_B (rad/s, (2,), not compensated for the body's rotation: ``(-v_x / d + w_y, -v_y / d -
+        w_x)``, :class:`alight.sim.sensors.FlowSample`) and the module's distance to it along -z_B (m).
+
+        With the ego estimate's body rates, attitude and descent rate over the deck (less the platform
+        estimate's vertical speed) it gives the feet's horizontal velocity across the surface
+        (:func:`alight.estimation.optical_flow.horizontal_slip_W`), ``deck_slip_W``, which the committed
+        descent reads. A sample that is not finite, from a non-positive distance, stamped in the future or
+        taken tilted past 60 deg is dropped."""
+        if not (math.isfinite(t) and t <= self.ego().t + FLOW_MAX_AGE_S):
+            return  # a sample from the future (a clock gone wrong) is not read
+        ego = self.ego()
+        target = self._target  # the mission step's estimate, at most a step old (a deck's vertical speed)
+        v_rel_z = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
+        slip = horizontal_slip_W(flow_B_rad_s, distance_m, ego.w_WB_B, ego.q_WB, v_rel_z)
+        if slip is None:
+            return
+        self.deck_slip_W = slip
+        self.deck_slip_t = t
+
+    def deck_slip_mps(self, t: float) -> float | None:
+        """The feet's horizontal speed across the surface under them (m/s) from an optical-flow sample of
+        the last :data:`FLOW_MAX_AGE_S`; None without one."""
+        if self.deck_slip_W is None or t - self.deck_slip_t > FLOW_MAX_AGE_S:
+            return None
+        return math.hypot(float(self.deck_slip_W[0]), float(self.deck_slip_W[1]))
 
     def on_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
         """The platform's own GNSS fix, taken at ``t_stamp`` and arriving now (later): position (3,) m,
@@ -418,7 +454,9 @@ class Pipeline:
         target = self.target(t)
         t0 = time.perf_counter()
         landed = self.touchdown.state is TouchdownState.LANDED
-        self.status = self.mission.step(t, ego, target, self.range_low_m, touchdown=landed)
+        self.status = self.mission.step(
+            t, ego, target, self.range_low_m, touchdown=landed, deck_slip_mps=self.deck_slip_mps(t)
+        )
         self.stats.charge("mission", t0)
         if self.status.changed and self.status.mode is not Mode.LANDED and not self._detector_armed():
             self.touchdown.reset()  # a go-around or a new approach starts airborne

@@ -15,8 +15,9 @@ Paper 000 has four states: takeoff, exploration, platform tracking, landing. We 
   above the predicted platform while following it, then track again. Below ``land_commit_height_m`` the
   descent continues on the prediction (a downward camera cannot see the whole pad from closer than about
   its size), for at most ``land_commit_timeout_s`` and while the range finder does not see the ground
-  beside the deck (``land_commit_ground_margin_m``), when those are set; while a gate is only marginal the
-  descent holds its height (``descent_hold``).
+  beside the deck (``land_commit_ground_margin_m``) and, on a vehicle with an optical-flow module, while
+  the feet do not slip across the deck (``land_commit_max_slip_mps``), when those are set; while a gate is
+  only marginal the descent holds its height (``descent_hold``).
 - ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
   budget is spent. ABORT performs the ``final_action``: ``hover`` (climb to the exploration altitude and
   hold), ``return`` (fly to the take-off point at the exploration altitude and land there) or
@@ -127,6 +128,13 @@ class MissionConfig:
     braked or drove off under the last half metre (the estimator follows a speed change within a few
     measurements, and the camera may lose the pad right after), and the prediction the descent flies on
     no longer holds."""
+    land_commit_max_slip_mps: float | None = 0.5
+    """Go-around when, in a committed descent, the optical-flow module (when the vehicle has one) measures
+    the feet moving faster than this across the surface under them (m/s): the deck braked or sped up
+    under the last half metre, which the camera no longer sees and the platform estimate follows only
+    after a few measurements. Why 0.5: two thirds of the 0.75 m/s that the default contact judge allows
+    across the deck, so that a slip still growing (a deck braking at 6 m/s^2 adds 0.12 m/s every 20 ms)
+    is caught before it passes it. None: off. Without a module the check has nothing to read."""
     land_commit_ground_margin_m: float | None = 0.2
     """Go-around when, in a committed descent, the range finder (from the feet) reads more than this
     beyond the body's height over the estimated deck (m): the surface below is lower than the deck, the
@@ -214,6 +222,7 @@ class MissionConfig:
             "land_commit_timeout_s",
             "land_commit_speed_change_mps",
             "land_commit_ground_margin_m",
+            "land_commit_max_slip_mps",
             "land_commit_max_tilt_rad",
             "land_commit_max_platform_accel_mps2",
             "land_steady_tilt_max_rad",
@@ -230,6 +239,7 @@ class MissionConfig:
                 "takeoff_altitude_m",
                 "land_commit_timeout_s",
                 "land_commit_ground_margin_m",
+                "land_commit_max_slip_mps",
                 "land_commit_max_tilt_rad",
                 "land_commit_max_platform_accel_mps2",
                 "land_steady_tilt_max_rad",
@@ -294,6 +304,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "no touchdown after the commit height"),
     (Mode.LAND, Mode.GO_AROUND, "platform speed changed after the commit"),
     (Mode.LAND, Mode.GO_AROUND, "ground below the committed descent"),
+    (Mode.LAND, Mode.GO_AROUND, "the deck slipped under the committed descent (optical flow)"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -464,13 +475,15 @@ class Mission:
         range_m: float | None = None,
         *,
         touchdown: bool = False,
+        deck_slip_mps: float | None = None,
     ) -> MissionStatus:
         """Advance the machine to time ``t``. ``target`` is the platform estimate at ``t`` (None before
         the first detection); ``range_m`` is the range finder's reading from the feet, None when invalid,
         read only by the committed descent's ground check (the pipeline gives the smallest of its last
         three readings: one spurious long return must not send the vehicle around; the touchdown is the
         land detector's); ``touchdown``: the onboard land detector says the vehicle stands on a
-        surface."""
+        surface; ``deck_slip_mps``: the feet's horizontal speed across the surface under them from an
+        optical-flow module, None without a recent sample (read only by the committed descent)."""
         cfg = self.config
         before = self.mode
         if self.mode is Mode.IDLE:
@@ -526,7 +539,7 @@ class Mission:
                 self._go(t, Mode.EXPLORE, "search around the prediction timed out")
 
         elif mode is Mode.LAND:
-            self._step_land(t, ego, target, age, over_budget, touchdown, range_m)
+            self._step_land(t, ego, target, age, over_budget, touchdown, range_m, deck_slip_mps)
 
         elif mode is Mode.GO_AROUND:
             if self.go_arounds > cfg.max_go_arounds:
@@ -594,6 +607,7 @@ class Mission:
         over_budget: bool,
         touchdown: bool,
         range_m: float | None = None,
+        deck_slip_mps: float | None = None,
     ) -> None:
         cfg = self.config
         if touchdown:
@@ -626,6 +640,15 @@ class Mission:
                 self._go_around(t, "no touchdown after the commit height")
             elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
                 self._go_around(t, "platform speed changed after the commit")
+            elif (
+                cfg.land_commit_max_slip_mps is not None
+                and deck_slip_mps is not None
+                and deck_slip_mps > cfg.land_commit_max_slip_mps
+            ):
+                # measured, not predicted: the deck moves under the feet (optical flow). No height floor:
+                # the module sees the deck until the feet are centimetres over it, and a touchdown at
+                # this slip would be past the contact limit anyway
+                self._go_around(t, "the deck slipped under the committed descent (optical flow)")
             elif margin is not None and range_m is not None and range_m > height + margin:
                 # the range from the feet exceeds the body's height over the estimated deck: the surface
                 # below is lower than the deck (the ground beside it)

@@ -1,4 +1,4 @@
-"""Simulated onboard sensors: IMU, VIO-like odometry and a downward range finder.
+"""Simulated onboard sensors: IMU, VIO-like odometry, a downward range finder and an optical-flow module.
 
 Each sensor takes ground truth and a ``numpy.random.Generator``; it splits a child generator off it at
 construction (one draw from the caller's generator) and draws its noise from the child in blocks, so a
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from alight.types import GRAVITY_MPS2, EgoState, FloatArray
+from alight.types import GRAVITY_MPS2, EgoState, FloatArray, quat_to_rotmat
 
 from .platform import PlatformTruth
 
@@ -532,3 +532,90 @@ class RangeFinder:
         if r < self.config.min_range_m:
             return -math.inf
         return max(r + noise, 0.0)
+
+
+@dataclass(frozen=True)
+class OpticalFlowConfig:
+    """A downward optical-flow module with its own short-range distance sensor, as PX4 flies them (ARK
+    Flow, Holybro H-Flow: a PAW3902 or PMW3901 flow sensor beside a VL53L1X time-of-flight ranger), at the
+    landing-gear feet like the range finder. What it measures is the apparent angular rate of the surface
+    under it, so over the deck it sees the vehicle's velocity *relative to the deck*, at tens of hertz and
+    without the camera, which no longer sees the whole pad in the last half metre."""
+
+    rate_hz: float = 50.0
+    """Sample rate (Hz)."""
+    noise_rad_s: float = 0.05
+    """White noise on each flow axis (rad/s)."""
+    min_range_m: float = 0.08
+    """Closest surface the flow sensor resolves (m; ARK Flow: 80 mm); closer, no sample."""
+    max_range_m: float = 4.0
+    """Farthest surface of its ranger (m; VL53L1X long mode); farther, no sample."""
+    range_noise_m: float = 0.01
+    """White noise on the module's distance (m)."""
+    origin_B: tuple[float, float, float] = (0.0, 0.0, -0.10)
+    """Module position in B (m)."""
+
+    def __post_init__(self) -> None:
+        _positive("rate_hz", self.rate_hz)
+        _positive("max_range_m", self.max_range_m)
+        _non_negative(self, ("min_range_m", "noise_rad_s", "range_noise_m"))
+        if self.min_range_m >= self.max_range_m:
+            raise ValueError("min_range_m must be below max_range_m")
+
+
+@dataclass(frozen=True)
+class FlowSample:
+    """One optical-flow sample, as the module reports it (not compensated for the body's rotation)."""
+
+    t: float
+    """Time of the sample (s)."""
+    flow_B_rad_s: FloatArray
+    """(2,) apparent angular rate of the surface's texture along x_B and y_B (rad/s): for a surface at
+    distance d along -z_B moving at v_rel_B relative to the sensor, ``(-v_x / d + w_y, -v_y / d - w_x)``
+    with the body rates w (what PX4's OPTICAL_FLOW_RAD integrates, before its gyro compensation)."""
+    distance_m: float
+    """The module's own range to the surface along -z_B (m)."""
+
+
+class OpticalFlowSensor:
+    """Flow of the surface under the module (the pad, moving with the platform, or the ground), with
+    white noise; no sample outside its range. Its distance comes from the same ray as the range
+    finder's (:func:`_true_range`), from the module's own origin."""
+
+    def __init__(self, config: OpticalFlowConfig, rng: np.random.Generator) -> None:
+        self.config = config
+        self._stream = _NormalStream(rng, 3, block=512)
+        self._origin_B = np.array(config.origin_B, dtype=np.float64)
+
+    def measure_at(
+        self,
+        t: float,
+        x_B: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+        deck: tuple[FloatArray, FloatArray, float, float],
+        pad_size_m: float,
+    ) -> FlowSample | None:
+        """A sample at ``t`` from the body's truth ``x_B = (p_WB, v_WB, q_WB, w_WB_B)`` and the deck's
+        ``(p_WP, v_WP, yaw, yaw_rate)``; None when the surface is out of the module's range (a draw is made
+        either way, so the noise of later samples does not depend on it)."""
+        p_WB, v_WB, q_WB, w_B = (_f64(a) for a in x_B)
+        p_WP, v_WP, yaw, yaw_rate = _f64(deck[0]), _f64(deck[1]), float(deck[2]), float(deck[3])
+        noise = self._stream.row()
+        cfg = self.config
+        d = _true_range(p_WB, q_WB, self._origin_B, p_WP, yaw, pad_size_m)
+        if not (cfg.min_range_m <= d <= cfg.max_range_m):
+            return None
+        R_WB = quat_to_rotmat(q_WB)
+        o_W = p_WB + R_WB @ self._origin_B
+        hit_W = o_W - d * R_WB[:, 2]
+        # the surface's velocity where the ray meets it: the deck's (a rigid body turning at yaw_rate) on
+        # the pad, else the ground's
+        r = hit_W - p_WP
+        c, s = math.cos(yaw), math.sin(yaw)
+        half = 0.5 * pad_size_m
+        on_pad = abs(r[2]) < 1e-6 and abs(c * r[0] + s * r[1]) <= half and abs(-s * r[0] + c * r[1]) <= half
+        v_surface_W = v_WP + yaw_rate * np.array([-r[1], r[0], 0.0]) if on_pad else np.zeros(3)
+        v_sensor_W = v_WB + R_WB @ np.cross(w_B, self._origin_B)
+        v_rel_B = R_WB.T @ (v_sensor_W - v_surface_W)
+        flow = np.array([-v_rel_B[0] / d + w_B[1], -v_rel_B[1] / d - w_B[0]])
+        flow += cfg.noise_rad_s * noise[:2]
+        return FlowSample(float(t), flow, max(d + cfg.range_noise_m * float(noise[2]), 0.0))

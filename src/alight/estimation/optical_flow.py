@@ -1,0 +1,51 @@
+"""The velocity across the surface under the vehicle, from a downward optical-flow sample.
+
+An optical-flow module (PX4's ARK Flow, Holybro H-Flow) reports the apparent angular rate of the texture
+under it along x_B and y_B, and its distance d to that surface along -z_B. For a surface point on the
+sensor's axis, moving at ``v_rel_B`` relative to the sensor, and body rates ``w``, that rate is::
+
+    flow_x = -v_x / d + w_y,    flow_y = -v_y / d - w_x
+
+(the point at X_B = (0, 0, -d) moves in B as -v_rel_B - w x X_B). With the body rates and the distance
+known, the flow gives v_x and v_y, two components in B. The horizontal velocity in W needs a third:
+the vertical one, the descent rate over the surface, which the ego estimate and the platform estimate
+give. PX4 does the same inversion (with the tilt neglected) in its EKF2's flow fusion; this is a few
+lines of algebra on one sample, so it is written here rather than taken from a library.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from alight.types import FloatArray, quat_to_rotmat
+
+MIN_LEVEL_COSINE = 0.5
+"""Below this cosine of the tilt (60 deg) the flow says too little about the horizontal: no estimate."""
+
+
+def horizontal_slip_W(
+    flow_B_rad_s: FloatArray, distance_m: float, w_WB_B: FloatArray, q_WB: FloatArray, v_rel_z_W: float
+) -> FloatArray | None:
+    """The sensor's horizontal velocity relative to the surface under it, in W (m/s, (2,)), from one flow
+    sample (``flow_B_rad_s`` (2,), not compensated for the rotation; ``distance_m`` along -z_B), the body
+    rates ``w_WB_B`` (rad/s, (3,)), the attitude ``q_WB`` (x, y, z, w) and the relative velocity's
+    vertical component in W (m/s). None when an input is not finite, the distance is not positive or the
+    body is tilted past 60 deg."""
+    fx, fy, d = float(flow_B_rad_s[0]), float(flow_B_rad_s[1]), float(distance_m)
+    wx, wy = float(w_WB_B[0]), float(w_WB_B[1])
+    if not all(math.isfinite(a) for a in (fx, fy, d, wx, wy, v_rel_z_W)) or d <= 0.0:
+        return None
+    v_x = -(fx - wy) * d
+    v_y = -(fy + wx) * d
+    # v_B = R_WB^T v_W: the rows of x_B and y_B, with v_W's vertical component known, leave a 2x2 system
+    # for the horizontal ones; its determinant is the cosine of the tilt
+    R = quat_to_rotmat(q_WB)
+    a11, a12, a21, a22 = R[0, 0], R[1, 0], R[0, 1], R[1, 1]
+    det = a11 * a22 - a12 * a21
+    if det < MIN_LEVEL_COSINE:
+        return None
+    b1 = v_x - R[2, 0] * v_rel_z_W
+    b2 = v_y - R[2, 1] * v_rel_z_W
+    return np.array([(b1 * a22 - a12 * b2) / det, (a11 * b2 - a21 * b1) / det])
