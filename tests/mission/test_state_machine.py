@@ -499,8 +499,9 @@ def test_a_committed_descent_over_the_ground_beside_the_deck_goes_around() -> No
 
 def test_a_committed_descent_over_a_slipping_deck_goes_around() -> None:
     """The optical-flow module measures the feet moving across the deck (a deck that brakes under the last
-    half metre): a go-around, at any height of the committed descent; slip within the limit, or no
-    sample, or above the commit height: the descent goes on."""
+    half metre): a go-around in the last half of the committed descent; slip within the limit, no
+    sample, the first half of the committed descent (it pauses there for gusts and turns and catches up)
+    or above the commit height: the descent goes on."""
     limit = CFG.land_commit_max_slip_mps
     assert limit == 0.5  # on by default
     low = ego(p=(5.0, 0, PAD_Z + 0.1), v=(1.0, 0, -0.4))  # 10 cm over the deck: under every other gate
@@ -515,6 +516,11 @@ def test_a_committed_descent_over_a_slipping_deck_goes_around() -> None:
     m = at_mode(Mode.LAND, dataclasses.replace(CFG, land_commit_max_slip_mps=None))
     m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
     assert m.step(3.1, low, target(3.1), None, deck_slip_mps=2.0).mode is Mode.LAND
+    # committed, in its first half: a turn's slip the vehicle catches up with while the descent pauses
+    m = at_mode(Mode.LAND)
+    upper = ego(p=(5.0, 0, PAD_Z + 0.6 * CFG.land_commit_height_m), v=(1.0, 0, -0.4))
+    m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
+    assert m.step(3.1, upper, target(3.1), None, deck_slip_mps=1.0).mode is Mode.LAND
     # not committed (above the commit height): the descent's own gates decide
     m = at_mode(Mode.LAND)
     high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5), v=(1.0, 0, -0.4))
