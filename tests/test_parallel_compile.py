@@ -226,3 +226,41 @@ def test_a_cache_directory_that_cannot_be_written_compiles_ahead_without_the_loc
     with pc._exclusive(blocker / "cache"):  # mkdir under a file fails: no lock, no error
         entered = True
     assert entered
+
+
+def test_a_helper_ends_when_its_parent_is_killed(tmp_path: Path) -> None:
+    """A parent killed outright (no cleanup runs) leaves no helper compiling for nobody: the helper, on an
+    empty cache with kernels that take most of a minute to compile, ends within a second or two (without
+    the watch it compiled on, re-parented, for up to HELPER_TIMEOUT_S)."""
+    import time
+
+    share = tmp_path / "share.json"
+    slowest = sorted(read_manifest(), key=lambda k: -k.compile_s)[:6]  # ~50 s of compile on one core
+    share.write_text(json.dumps([k.__dict__ for k in slowest]), encoding="utf-8")
+    parent_code = textwrap.dedent(
+        f"""
+        import subprocess, sys, time
+        cmd = [sys.executable, "-m", "alight.parallel_compile", "--helper", {str(share)!r}]
+        print(subprocess.Popen(cmd).pid, flush=True)
+        time.sleep(60)
+        """
+    )
+    env = _env(NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    with subprocess.Popen(
+        [sys.executable, "-c", parent_code], stdout=subprocess.PIPE, text=True, env=env
+    ) as parent:
+        assert parent.stdout is not None
+        helper_pid = int(parent.stdout.readline())
+        time.sleep(1.5)  # the helper is importing or compiling
+        parent.kill()
+    deadline = time.monotonic() + 10.0
+    alive = True
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        try:  # ended: gone, or a zombie its new parent has not reaped yet
+            alive = Path(f"/proc/{helper_pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+        except OSError:
+            alive = False
+    if alive:
+        os.kill(helper_pid, 9)
+    assert not alive, "the helper outlived its killed parent by 10 s"

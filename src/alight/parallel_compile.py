@@ -29,6 +29,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -400,9 +401,26 @@ def write_manifest(presets: Sequence[str], path: Path = MANIFEST) -> list[Kernel
     return kernels
 
 
+def _exit_with_parent(poll_s: float = 0.5) -> None:
+    """End this helper when the process that started it is gone. An interrupt is cleaned up by
+    :func:`_collect`; a parent that is killed (a campaign stopping a sandbox, the OOM killer) is not, and
+    its helpers, re-parented, compiled on for nobody for up to :data:`HELPER_TIMEOUT_S`. A daemon thread
+    polls the parent id: the compiler gives the interpreter up every few milliseconds."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent:
+                os._exit(3)
+
+    threading.Thread(target=watch, name="alight-helper-parent-watch", daemon=True).start()
+
+
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if args[:1] == ["--helper"] and len(args) == 2:
+        _exit_with_parent()
         share = Path(args[1]).read_text(encoding="utf-8")
         read_at = time.time()
         kernels = [Kernel(**{**d, "presets": tuple(d["presets"])}) for d in json.loads(share)]
