@@ -569,7 +569,7 @@ class MissionSpec(_Strict):
     changed by more than this since the commit (m/s); default 0.5."""
     land_commit_max_slip_mps: PositiveFloat | None = None
     """Go-around when, below the commit height, the optical-flow module (``optical_flow:``) measures the
-    feet moving faster than this across the deck (m/s); default 0.5. Without a module nothing is
+    feet moving faster than this across the deck (m/s); default 0.6. Without a module nothing is
     measured and the check does not act."""
     land_commit_ground_margin_m: PositiveFloat | None = None
     """Go-around when, below the commit height, the range finder reads more than this beyond the height

@@ -128,15 +128,16 @@ class MissionConfig:
     braked or drove off under the last half metre (the estimator follows a speed change within a few
     measurements, and the camera may lose the pad right after), and the prediction the descent flies on
     no longer holds."""
-    land_commit_max_slip_mps: float | None = 0.5
+    land_commit_max_slip_mps: float | None = 0.6
     """Go-around when, in the last half of a committed descent (below half the commit height, where it no
     longer pauses for a gust or a turn), the optical-flow module (when the vehicle has one) measures the
     feet moving faster than this across the surface under them (m/s): the deck braked or sped up under
     the last half metre, which the camera no longer sees and the platform estimate follows only after a
-    few measurements. Why 0.5: two thirds of the 0.75 m/s that the default contact judge allows across
-    the deck, so that a slip still growing (a deck braking at 6 m/s^2 adds 0.12 m/s every 20 ms) is
-    caught before it passes it; normal descents of the envelope slip at most 0.43 m/s there. None: off.
-    Without a module the check has nothing to read."""
+    few measurements. Why 0.6: the 0.75 m/s across the deck that the default contact judge allows, less
+    what a hard brake (6 m/s^2) adds between a sample and the mission's next step (~25 ms, 0.15 m/s).
+    A hard brake passes it 80-120 ms in. Descents in 12 m/s wind with moderate turbulence that landed
+    well slipped up to 0.55 m/s there (19 of 20 envelope seeds; one 0.83). None: off. Without a module
+    the check has nothing to read."""
     land_commit_ground_margin_m: float | None = 0.2
     """Go-around when, in a committed descent, the range finder (from the feet) reads more than this
     beyond the body's height over the estimated deck (m): the surface below is lower than the deck, the
