@@ -475,7 +475,7 @@ class OpticalFlowSpec(_Strict):
     ``alight.sim.sensors.OpticalFlowConfig``): it measures the vehicle's velocity relative to the surface
     under it, the deck in a landing. The pipeline reads it in the committed descent, where the camera no
     longer sees the whole pad: a deck that brakes or speeds up under the last half metre sends the
-    vehicle around (``mission.land_commit_max_slip_mps``)."""
+    vehicle around (``mission.land_commit_deck_velocity_error_mps``)."""
 
     rate_hz: RateHz = 50.0
     """Sample rate (Hz); 200 Hz divided by a whole number (the simulator's sensor tick)."""
@@ -567,10 +567,10 @@ class MissionSpec(_Strict):
     land_commit_speed_change_mps: PositiveFloat | None = None
     """Go-around below the commit height (above a quarter of it) when the platform estimate's speed has
     changed by more than this since the commit (m/s); default 0.5."""
-    land_commit_max_slip_mps: PositiveFloat | None = None
-    """Go-around when, below the commit height, the optical-flow module (``optical_flow:``) measures the
-    feet moving faster than this across the deck (m/s); default 0.6. Without a module nothing is
-    measured and the check does not act."""
+    land_commit_deck_velocity_error_mps: PositiveFloat | None = None
+    """Go-around when, below the commit height, the deck's velocity that the optical-flow module
+    (``optical_flow:``) measures under the feet differs from the platform estimate's by more than this
+    (m/s); default 0.5. Without a module nothing is measured and the check does not act."""
     land_commit_ground_margin_m: PositiveFloat | None = None
     """Go-around when, below the commit height, the range finder reads more than this beyond the height
     over the estimated deck: the ground is below, not the deck (m). None: the preset's, else 0.2 m (every

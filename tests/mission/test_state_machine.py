@@ -497,34 +497,38 @@ def test_a_committed_descent_over_the_ground_beside_the_deck_goes_around() -> No
     assert m.step(3.0, high, target(3.0), CFG.land_commit_height_m + 0.5 + PAD_Z).mode is Mode.LAND
 
 
-def test_a_committed_descent_over_a_slipping_deck_goes_around() -> None:
-    """The optical-flow module measures the feet moving across the deck (a deck that brakes under the last
-    half metre): a go-around in the last half of the committed descent; slip within the limit, no
-    sample, the first half of the committed descent (it pauses there for gusts and turns and catches up)
-    or above the commit height: the descent goes on."""
-    limit = CFG.land_commit_max_slip_mps
-    assert limit == 0.6  # on by default
+def test_a_committed_descent_over_a_deck_that_leaves_the_estimate_goes_around() -> None:
+    """The optical-flow module measures the deck's velocity under the feet; when it leaves the platform
+    estimate's (1 m/s along x here) by more than the limit, as under a brake, a committed descent goes
+    around at any height. Within the limit, in any direction, without a sample, or above the commit
+    height (not committed): the descent goes on."""
+    limit = CFG.land_commit_deck_velocity_error_mps
+    assert limit == 0.5  # on by default
     low = ego(p=(5.0, 0, PAD_Z + 0.1), v=(1.0, 0, -0.4))  # 10 cm over the deck: under every other gate
+    commit = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4))
     m = at_mode(Mode.LAND)
-    m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
-    assert m.step(3.1, low, target(3.1), None, deck_slip_mps=limit - 0.05).mode is Mode.LAND
-    assert m.step(3.12, low, target(3.12), None, deck_slip_mps=None).mode is Mode.LAND
-    status = m.step(3.14, low, target(3.14), None, deck_slip_mps=limit + 0.05)
+    m.step(3.0, commit, target(3.0), None)
+    near = np.array([1.0 - 0.3 * limit, 0.9 * limit])  # |(-0.15, 0.45)| = 0.47 from the estimate's (1, 0)
+    assert m.step(3.1, low, target(3.1), None, deck_velocity_W=near).mode is Mode.LAND
+    assert m.step(3.12, low, target(3.12), None, deck_velocity_W=None).mode is Mode.LAND
+    braked = np.array([1.0 - limit - 0.05, 0.0])
+    status = m.step(3.14, low, target(3.14), None, deck_velocity_W=braked)
     assert status.mode is Mode.GO_AROUND
-    assert status.reason == "the deck slipped under the committed descent (optical flow)"
-    # off with None
-    m = at_mode(Mode.LAND, dataclasses.replace(CFG, land_commit_max_slip_mps=None))
-    m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
-    assert m.step(3.1, low, target(3.1), None, deck_slip_mps=2.0).mode is Mode.LAND
-    # committed, in its first half: a turn's slip the vehicle catches up with while the descent pauses
+    assert status.reason == "the deck left the estimate under the committed descent (optical flow)"
+    # the same measured velocity against an estimate that agrees with it: no go-around
     m = at_mode(Mode.LAND)
-    upper = ego(p=(5.0, 0, PAD_Z + 0.6 * CFG.land_commit_height_m), v=(1.0, 0, -0.4))
-    m.step(3.0, ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m - 0.1), v=(1.0, 0, -0.4)), target(3.0), None)
-    assert m.step(3.1, upper, target(3.1), None, deck_slip_mps=1.0).mode is Mode.LAND
+    m.step(3.0, commit, target(3.0, v=(braked[0], 0.0, 0.0)), None)
+    assert (
+        m.step(3.1, low, target(3.1, v=(braked[0], 0.0, 0.0)), None, deck_velocity_W=braked).mode is Mode.LAND
+    )
+    # off with None
+    m = at_mode(Mode.LAND, dataclasses.replace(CFG, land_commit_deck_velocity_error_mps=None))
+    m.step(3.0, commit, target(3.0), None)
+    assert m.step(3.1, low, target(3.1), None, deck_velocity_W=np.zeros(2)).mode is Mode.LAND
     # not committed (above the commit height): the descent's own gates decide
     m = at_mode(Mode.LAND)
     high = ego(p=(5.0, 0, PAD_Z + CFG.land_commit_height_m + 0.5), v=(1.0, 0, -0.4))
-    assert m.step(3.0, high, target(3.0), None, deck_slip_mps=2.0).mode is Mode.LAND
+    assert m.step(3.0, high, target(3.0), None, deck_velocity_W=np.zeros(2)).mode is Mode.LAND
 
 
 def test_go_around_returns_to_track_at_height_and_aborts_after_too_many() -> None:
@@ -626,7 +630,7 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_a_committed_descent_without_touchdown_goes_around,
         test_a_platform_speed_change_under_a_committed_descent_goes_around,
         test_a_committed_descent_over_the_ground_beside_the_deck_goes_around,
-        test_a_committed_descent_over_a_slipping_deck_goes_around,
+        test_a_committed_descent_over_a_deck_that_leaves_the_estimate_goes_around,
         test_go_around_returns_to_track_at_height_and_aborts_after_too_many,
         test_go_around_without_an_estimate_waits_for_the_exploration_altitude,
         test_final_action_hover_climbs_holds_and_completes,

@@ -309,19 +309,11 @@ class World:
         self.flow_every_ticks = 0
         """Ticks between two optical-flow samples (0: no module)."""
         if s.optical_flow is not None:
-            of = s.optical_flow
-            self.optical_flow = OpticalFlowSensor(
-                OpticalFlowConfig(
-                    rate_hz=of.rate_hz,
-                    noise_rad_s=of.noise_rad_s,
-                    min_range_m=of.min_range_m,
-                    max_range_m=of.max_range_m,
-                    range_noise_m=of.range_noise_m,
-                    origin_B=(0.0, 0.0, -airframe.gear_height),
-                ),
-                np.random.default_rng(seeds[10]),
-            )
-            self.flow_every_ticks = round(1.0 / (of.rate_hz * TICK_DT))
+            # the scenario's section holds the sensor's own fields; the module sits at the feet
+            feet = (0.0, 0.0, -airframe.gear_height)
+            flow = OpticalFlowConfig(**s.optical_flow.model_dump(), origin_B=feet)
+            self.optical_flow = OpticalFlowSensor(flow, np.random.default_rng(seeds[10]))
+            self.flow_every_ticks = round(1.0 / (flow.rate_hz * TICK_DT))
 
         self.renderer: Renderer | None = None
         if preset.uses_camera:

@@ -222,6 +222,9 @@ class Pipeline:
         self.deck_slip_W: FloatArray | None = None
         """The feet's horizontal velocity relative to the surface under them (m/s, (2,) in W), from the
         last optical-flow sample; None before one (a vehicle without a module)."""
+        self.deck_velocity_W: FloatArray | None = None
+        """The horizontal velocity of the surface under the feet (m/s, (2,) in W) from the same sample:
+        the ego estimate's velocity less the slip (the module's lever arm neglected: |w| x 0.1-0.2 m)."""
         self.deck_slip_t = -math.inf
         """Time of that sample (s)."""
         self.last_reference: Reference | None = None
@@ -310,8 +313,9 @@ class Pipeline:
 
         With the ego estimate's body rates, attitude and descent rate over the deck (less the platform
         estimate's vertical speed) it gives the feet's horizontal velocity across the surface
-        (:func:`alight.estimation.optical_flow.horizontal_slip_W`), ``deck_slip_W``, which the committed
-        descent reads. A sample that is not finite, from a non-positive distance, stamped in the future or
+        (:func:`alight.estimation.optical_flow.horizontal_slip_W`), ``deck_slip_W``, and so the deck's own
+        velocity under them (``deck_velocity_W``), which the committed descent compares with the platform
+        estimate. A sample that is not finite, from a non-positive distance, stamped in the future or
         taken tilted past 60 deg is dropped."""
         if not (math.isfinite(t) and t <= self.ego().t + FLOW_MAX_AGE_S):
             return  # a sample from the future (a clock gone wrong) is not read
@@ -322,6 +326,7 @@ class Pipeline:
         if slip is None:
             return
         self.deck_slip_W = slip
+        self.deck_velocity_W = np.array([float(ego.v_WB[0]) - slip[0], float(ego.v_WB[1]) - slip[1]])
         self.deck_slip_t = t
 
     def deck_slip_mps(self, t: float) -> float | None:
@@ -330,6 +335,13 @@ class Pipeline:
         if self.deck_slip_W is None or t - self.deck_slip_t > FLOW_MAX_AGE_S:
             return None
         return math.hypot(float(self.deck_slip_W[0]), float(self.deck_slip_W[1]))
+
+    def flow_deck_velocity_W(self, t: float) -> FloatArray | None:
+        """The horizontal velocity of the surface under the feet (m/s, (2,) in W) measured by an optical-flow
+        sample of the last :data:`FLOW_MAX_AGE_S`; None without one."""
+        if self.deck_velocity_W is None or t - self.deck_slip_t > FLOW_MAX_AGE_S:
+            return None
+        return self.deck_velocity_W
 
     def on_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
         """The platform's own GNSS fix, taken at ``t_stamp`` and arriving now (later): position (3,) m,
@@ -455,7 +467,7 @@ class Pipeline:
         t0 = time.perf_counter()
         landed = self.touchdown.state is TouchdownState.LANDED
         self.status = self.mission.step(
-            t, ego, target, self.range_low_m, touchdown=landed, deck_slip_mps=self.deck_slip_mps(t)
+            t, ego, target, self.range_low_m, touchdown=landed, deck_velocity_W=self.flow_deck_velocity_W(t)
         )
         self.stats.charge("mission", t0)
         if self.status.changed and self.status.mode is not Mode.LANDED and not self._detector_armed():

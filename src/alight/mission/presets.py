@@ -120,7 +120,7 @@ _MISSION_OPTIONAL = (
     "land_touchdown_clearance_m",
     "land_commit_max_platform_accel_mps2",
     "land_commit_ground_margin_m",
-    "land_commit_max_slip_mps",
+    "land_commit_deck_velocity_error_mps",
     "final_action",
 )
 """Scenario mission keys whose None means the MissionConfig default."""

@@ -16,8 +16,8 @@ Paper 000 has four states: takeoff, exploration, platform tracking, landing. We 
   descent continues on the prediction (a downward camera cannot see the whole pad from closer than about
   its size), for at most ``land_commit_timeout_s`` and while the range finder does not see the ground
   beside the deck (``land_commit_ground_margin_m``) and, on a vehicle with an optical-flow module, while
-  the feet do not slip across the deck in its last half (``land_commit_max_slip_mps``), when those are
-  set; while a gate is only marginal the descent holds its height (``descent_hold``).
+  the deck under the feet moves as the platform estimate says (``land_commit_deck_velocity_error_mps``),
+  when those are set; while a gate is only marginal the descent holds its height (``descent_hold``).
 - ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
   budget is spent. ABORT performs the ``final_action``: ``hover`` (climb to the exploration altitude and
   hold), ``return`` (fly to the take-off point at the exploration altitude and land there) or
@@ -128,15 +128,14 @@ class MissionConfig:
     braked or drove off under the last half metre (the estimator follows a speed change within a few
     measurements, and the camera may lose the pad right after), and the prediction the descent flies on
     no longer holds."""
-    land_commit_max_slip_mps: float | None = 0.6
-    """Go-around when, in the last half of a committed descent (below half the commit height, where it no
-    longer pauses for a gust or a turn), the optical-flow module (when the vehicle has one) measures the
-    feet moving faster than this across the surface under them (m/s): the deck braked or sped up under
-    the last half metre, which the camera no longer sees and the platform estimate follows only after a
-    few measurements. Why 0.6: the 0.75 m/s across the deck that the default contact judge allows, less
-    what a hard brake (6 m/s^2) adds between a sample and the mission's next step (~25 ms, 0.15 m/s).
-    A hard brake passes it 80-120 ms in. Descents in 12 m/s wind with moderate turbulence that landed
-    well slipped up to 0.55 m/s there (19 of 20 envelope seeds; one 0.83). None: off. Without a module
+    land_commit_deck_velocity_error_mps: float | None = 0.5
+    """Go-around when, in a committed descent, the deck's velocity that the optical-flow module measures
+    under the feet (when the vehicle has one: the ego velocity less the measured slip) differs from the
+    platform estimate's, which the descent flies on, by more than this (m/s): the deck braked or sped up
+    under the last half metre, which the camera no longer sees and the estimate follows only after a few
+    measurements. A hard brake (6 m/s^2) passes 0.5 m/s about 85 ms in. Why the deck's velocity and not
+    the slip: in 12 m/s wind or a tractor's U-turn the *vehicle* slips up to 1.1 m/s while it holds or
+    catches up, and lands well; the deck itself does what the estimate says. None: off. Without a module
     the check has nothing to read."""
     land_commit_ground_margin_m: float | None = 0.2
     """Go-around when, in a committed descent, the range finder (from the feet) reads more than this
@@ -225,7 +224,7 @@ class MissionConfig:
             "land_commit_timeout_s",
             "land_commit_speed_change_mps",
             "land_commit_ground_margin_m",
-            "land_commit_max_slip_mps",
+            "land_commit_deck_velocity_error_mps",
             "land_commit_max_tilt_rad",
             "land_commit_max_platform_accel_mps2",
             "land_steady_tilt_max_rad",
@@ -242,7 +241,7 @@ class MissionConfig:
                 "takeoff_altitude_m",
                 "land_commit_timeout_s",
                 "land_commit_ground_margin_m",
-                "land_commit_max_slip_mps",
+                "land_commit_deck_velocity_error_mps",
                 "land_commit_max_tilt_rad",
                 "land_commit_max_platform_accel_mps2",
                 "land_steady_tilt_max_rad",
@@ -307,7 +306,7 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "no touchdown after the commit height"),
     (Mode.LAND, Mode.GO_AROUND, "platform speed changed after the commit"),
     (Mode.LAND, Mode.GO_AROUND, "ground below the committed descent"),
-    (Mode.LAND, Mode.GO_AROUND, "the deck slipped under the committed descent (optical flow)"),
+    (Mode.LAND, Mode.GO_AROUND, "the deck left the estimate under the committed descent (optical flow)"),
     (Mode.LAND, Mode.ABORT, "time budget spent"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
@@ -478,15 +477,15 @@ class Mission:
         range_m: float | None = None,
         *,
         touchdown: bool = False,
-        deck_slip_mps: float | None = None,
+        deck_velocity_W: FloatArray | None = None,
     ) -> MissionStatus:
         """Advance the machine to time ``t``. ``target`` is the platform estimate at ``t`` (None before
         the first detection); ``range_m`` is the range finder's reading from the feet, None when invalid,
         read only by the committed descent's ground check (the pipeline gives the smallest of its last
         three readings: one spurious long return must not send the vehicle around; the touchdown is the
         land detector's); ``touchdown``: the onboard land detector says the vehicle stands on a
-        surface; ``deck_slip_mps``: the feet's horizontal speed across the surface under them from an
-        optical-flow module, None without a recent sample (read only by the committed descent)."""
+        surface; ``deck_velocity_W``: the horizontal velocity (2,) of the surface under the feet measured by
+        an optical-flow module, None without a recent sample (read only by the committed descent)."""
         cfg = self.config
         before = self.mode
         if self.mode is Mode.IDLE:
@@ -542,7 +541,7 @@ class Mission:
                 self._go(t, Mode.EXPLORE, "search around the prediction timed out")
 
         elif mode is Mode.LAND:
-            self._step_land(t, ego, target, age, over_budget, touchdown, range_m, deck_slip_mps)
+            self._step_land(t, ego, target, age, over_budget, touchdown, range_m, deck_velocity_W)
 
         elif mode is Mode.GO_AROUND:
             if self.go_arounds > cfg.max_go_arounds:
@@ -610,7 +609,7 @@ class Mission:
         over_budget: bool,
         touchdown: bool,
         range_m: float | None = None,
-        deck_slip_mps: float | None = None,
+        deck_velocity_W: FloatArray | None = None,
     ) -> None:
         cfg = self.config
         if touchdown:
@@ -644,17 +643,18 @@ class Mission:
             elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
                 self._go_around(t, "platform speed changed after the commit")
             elif (
-                cfg.land_commit_max_slip_mps is not None
-                and deck_slip_mps is not None
-                and deck_slip_mps > cfg.land_commit_max_slip_mps
-                and height <= 0.5 * cfg.land_commit_height_m
+                cfg.land_commit_deck_velocity_error_mps is not None
+                and deck_velocity_W is not None
+                and math.hypot(
+                    float(deck_velocity_W[0]) - float(target.v_WP[0]),
+                    float(deck_velocity_W[1]) - float(target.v_WP[1]),
+                )
+                > cfg.land_commit_deck_velocity_error_mps
             ):
-                # measured, not predicted: the deck moves under the feet (optical flow). Only in the last
-                # half of the committed descent, which no longer pauses: above it a gust or a turn holds
-                # the descent and the vehicle catches up with the deck (slips up to 1.1 m/s there in the
-                # envelope's tractor turns and 12 m/s wind, then touchdowns at 0.3-0.5 m/s). No floor
-                # below: the module sees the deck until the feet are centimetres over it
-                self._go_around(t, "the deck slipped under the committed descent (optical flow)")
+                # measured, not predicted: the deck under the feet no longer moves as the estimate the
+                # descent flies on (optical flow). No height floor: the module sees the deck until the
+                # feet are centimetres over it
+                self._go_around(t, "the deck left the estimate under the committed descent (optical flow)")
             elif margin is not None and range_m is not None and range_m > height + margin:
                 # the range from the feet exceeds the body's height over the estimated deck: the surface
                 # below is lower than the deck (the ground beside it)
