@@ -317,9 +317,9 @@ class Pipeline:
         velocity under them (``deck_velocity_W``), which the committed descent compares with the platform
         estimate. A sample that is not finite, from a non-positive distance, stamped in the future or
         taken tilted past 60 deg is dropped."""
-        if not (math.isfinite(t) and t <= self.ego().t + FLOW_MAX_AGE_S):
-            return  # a sample from the future (a clock gone wrong) is not read
         ego = self.ego()
+        if not (math.isfinite(t) and t <= ego.t + FLOW_MAX_AGE_S):
+            return  # a sample from the future (a clock gone wrong) is not read
         target = self._target  # the mission step's estimate, at most a step old (a deck's vertical speed)
         v_rel_z = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
         slip = horizontal_slip_W(flow_B_rad_s, distance_m, ego.w_WB_B, ego.q_WB, v_rel_z)
