@@ -398,13 +398,24 @@ class FaultSpec(_Strict):
     """Intervals [t0, t1] (s) of invalid range readings."""
     range_spurious_prob: Probability = 0.0
     """Probability that a range reading is a spurious return, uniform over the sensor's span."""
+    flow_dropout_prob: Probability = 0.0
+    """Probability that an optical-flow sample is lost (the module reports quality 0: too little texture
+    or light under it); needs ``optical_flow:``."""
+    flow_dropouts: list[Interval] = Field(default_factory=list)
+    """Intervals [t0, t1] (s) without optical-flow samples (a dark or featureless deck, a dead module);
+    needs ``optical_flow:``."""
 
     @model_validator(mode="after")
     def _ordered(self) -> FaultSpec:
         _check_intervals("blackout", self.blackouts)
         _check_intervals("odometry_dropouts", self.odometry_dropouts)
         _check_intervals("range_dropouts", self.range_dropouts)
+        _check_intervals("flow_dropouts", self.flow_dropouts)
         return self
+
+    def acts_on_flow(self) -> bool:
+        """Whether a fault acts on the optical-flow module."""
+        return self.flow_dropout_prob > 0 or bool(self.flow_dropouts)
 
 
 class SearchArea(_Strict):
@@ -862,6 +873,15 @@ class Scenario(_Strict):
     """The blocks that fly, overriding the preset's (``docs/blocks.md``)."""
     name: str | None = None
     """Free text naming the scenario in reports."""
+
+    @model_validator(mode="after")
+    def _flow_faults_need_the_module(self) -> Scenario:
+        if self.optical_flow is None and self.faults.acts_on_flow():
+            raise ValueError(
+                "faults.flow_dropout_prob / flow_dropouts: the vehicle has no optical-flow module "
+                "(add optical_flow: {})"
+            )
+        return self
 
     @model_validator(mode="after")
     def _known_blocks(self) -> Scenario:

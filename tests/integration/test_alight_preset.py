@@ -53,7 +53,8 @@ def test_alight_lands_with_vision(what: str, keys: dict[str, Any], seed: int) ->
 def test_optical_flow_catches_a_deck_that_brakes_under_the_committed_descent() -> None:
     """The envelope's brake (6 m/s, 6 m/s^2 at 12 s) under the committed descent: without an optical-flow
     module the feet meet a deck that has slowed by ~1.7 m/s (crashed); with one, the deck is measured
-    leaving the estimate 0.1 s into the brake, the vehicle goes around and lands on the next approach."""
+    leaving the estimate 0.1 s into the brake, the vehicle goes around and lands on the next approach; with
+    the module's samples lost across the brake (a flow fault), it crashes as without one."""
     base: dict[str, Any] = {"preset": "alight", "seed": BRAKE_SEED, "duration_s": 120, "platform": BRAKE}
     without = run_mission(scenario_from_dict(base), record=False).result
     assert without["outcome"] == "crashed", without["outcome_reason"]
@@ -62,6 +63,13 @@ def test_optical_flow_catches_a_deck_that_brakes_under_the_committed_descent() -
     slips = [e for e in flown["failsafe_events"] if e["reason"].startswith("the deck left the estimate")]
     assert len(slips) == 1 and 12.0 < slips[0]["t"] < 12.3, slips
     assert flown["touchdown_error_m"] < 0.15
+    # a module that sees nothing across the brake (faults.flow_dropouts: a featureless deck) leaves the
+    # gate silent: the descent meets the brake as without a module
+    blind = {**base, "optical_flow": {}, "faults": {"flow_dropouts": [[11.5, 14.0]]}}
+    dark = run_mission(scenario_from_dict(blind), record=False).result
+    assert not [e for e in dark["failsafe_events"] if e["reason"].startswith("the deck left the estimate")]
+    assert dark["outcome"] == "crashed", dark["outcome_reason"]
+    assert dark["time_first_contact_s"] == without["time_first_contact_s"]
 
 
 def test_the_envelope_campaign_flies_no_seed_of_the_regression_missions() -> None:

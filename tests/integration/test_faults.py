@@ -1,6 +1,7 @@
 """Faults reach every preset: each fault key, flown on every preset, changes what the pipeline receives
-(the frames the detector sees, the detections, odometry, range and IMU messages), or is refused with one
-line. And the closed-loop acceptance: a blacked-out or fully dropping camera never detects, never lands.
+(the frames the detector sees, the detections, odometry, range, optical-flow and IMU messages), or is
+refused with one line. And the closed-loop acceptance: a blacked-out or fully dropping camera never
+detects, never lands.
 
 The matrix flies short missions (4.5 s: take-off, with the parked pad coming into view at about 3 s) and
 records what reaches the pipeline through its sensor entry points, against the same mission without
@@ -26,6 +27,7 @@ BASE: dict[str, Any] = {
     "seed": 3,
     "duration_s": 4.5,
     "platform": {"path": "straight", "speed_mps": 0.0, "start_xy": [1.2, 0.0], "heading_rad": 0.0},
+    "optical_flow": {},  # for the flow faults; the module changes nothing else in the flight
 }
 
 
@@ -37,6 +39,8 @@ class Received:
     odometry: list[tuple[float, np.ndarray]] = field(default_factory=list)
     odometry_resets: list[tuple[float, int | None]] = field(default_factory=list)
     ranges: list[tuple[float, float | None]] = field(default_factory=list)
+    flows: list[float] = field(default_factory=list)
+    """Times of the optical-flow samples."""
     frames: list[tuple[float, float, Any]] = field(default_factory=list)
     """(arrival time, capture time, image for a camera preset or the observations for groundtruth)."""
     p_WP: np.ndarray | None = None
@@ -47,11 +51,12 @@ class Received:
 
 
 def _spy(monkeypatch: pytest.MonkeyPatch, rec: Received) -> Callable[[float, np.ndarray, list[Any]], None]:
-    on_imu, on_odo, on_range, on_obs = (
+    on_imu, on_odo, on_range, on_obs, on_flow = (
         Pipeline.on_imu,
         Pipeline.on_odometry,
         Pipeline.on_range,
         Pipeline.on_observations,
+        Pipeline.on_flow,
     )
 
     def imu(self: Pipeline, t: float, f: np.ndarray, w: np.ndarray) -> None:
@@ -76,6 +81,10 @@ def _spy(monkeypatch: pytest.MonkeyPatch, rec: Received) -> Callable[[float, np.
         rec.ranges.append((t, r if r is not None and math.isfinite(r) else None))
         on_range(self, t, r)
 
+    def flow(self: Pipeline, t: float, flow_B: np.ndarray, distance_m: float) -> None:
+        rec.flows.append(t)
+        on_flow(self, t, flow_B, distance_m)
+
     def obs(self: Pipeline, t: float, o: list[Any]) -> Any:
         if self.detector is None:  # the ground-truth sensor's reports come straight here
             rec.frames.append((rec.now, t, list(o)))
@@ -85,6 +94,7 @@ def _spy(monkeypatch: pytest.MonkeyPatch, rec: Received) -> Callable[[float, np.
     monkeypatch.setattr(Pipeline, "on_odometry", odo)
     monkeypatch.setattr(Pipeline, "on_range", rng)
     monkeypatch.setattr(Pipeline, "on_observations", obs)
+    monkeypatch.setattr(Pipeline, "on_flow", flow)
 
     def sink(t_cap: float, image: np.ndarray, _obs: list[Any]) -> None:
         rec.frames.append((rec.now, t_cap, image.copy()))
@@ -222,6 +232,15 @@ def _range_spurious(base: Received, got: Received, camera: bool) -> None:
     assert len(diffs) > 100 and np.mean(np.array(diffs) > 0.2) > 0.8
 
 
+def _flow_dropout_prob(base: Received, got: Received, camera: bool) -> None:
+    assert len(base.flows) > 50 and not got.flows
+
+
+def _flow_dropouts(base: Received, got: Received, camera: bool) -> None:
+    assert sum(1.0 <= t <= 1.5 for t in base.flows) >= 20
+    assert not any(1.0 <= t <= 1.5 for t in got.flows) and any(t > 1.5 for t in got.flows)
+
+
 def _speed_profile(base: Received, got: Received, camera: bool) -> None:
     assert base.p_WP is not None and got.p_WP is not None
     assert np.allclose(base.p_WP[-1], base.p_WP[0])  # parked
@@ -245,6 +264,8 @@ CASES: dict[str, tuple[dict[str, Any], dict[str, Any], Callable[[Received, Recei
     "range_dropout_prob": ({"range_dropout_prob": 1.0}, {}, _range_dropout_prob),
     "range_dropouts": ({"range_dropouts": [[2.5, 3.0]]}, {}, _range_dropouts),
     "range_spurious_prob": ({"range_spurious_prob": 1.0}, {}, _range_spurious),
+    "flow_dropout_prob": ({"flow_dropout_prob": 1.0}, {}, _flow_dropout_prob),
+    "flow_dropouts": ({"flow_dropouts": [[1.0, 1.5]]}, {}, _flow_dropouts),
     "platform.speed_profile": (
         {},
         {"speed_profile": {"ramp": {"t_s": 0.5, "speed_mps": 2.0, "accel_mps2": 2.0}}},

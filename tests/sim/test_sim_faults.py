@@ -154,6 +154,24 @@ def test_range_dropouts_and_spurious_returns() -> None:
     assert r.min() >= 0.0 and r.max() <= 14.0 and r.std() > 3.0  # uniform on [0, 14]: std 4.0
 
 
+def test_flow_dropouts_withhold_samples_and_draw_from_their_own_stream() -> None:
+    assert all(_faults().flow_delivered(0.02 * i) for i in range(100))  # no fault: no draw, all delivered
+    assert not any(_faults(flow_dropout_prob=1.0).flow_delivered(0.02 * i) for i in range(100))
+    f = _faults(flow_dropouts=[[1.0, 2.0]])
+    assert [f.flow_delivered(t) for t in (0.5, 1.0, 1.5, 2.0, 2.5)] == [True, False, False, False, True]
+    # a 30 % dropout: about 30 % lost, the same samples on every run, and the other streams unchanged
+    runs = [_faults(flow_dropout_prob=0.3, range_dropout_prob=0.5) for _ in range(2)]
+    kept = [np.array([f.flow_delivered(0.02 * i) for i in range(5000)]) for f in runs]
+    assert np.array_equal(kept[0], kept[1]) and abs(kept[0].mean() - 0.7) < 0.02
+    ranges = [_faults(range_dropout_prob=0.5, **extra) for extra in ({}, {"flow_dropout_prob": 0.3})]
+    for f in ranges[1:]:
+        for i in range(50):
+            f.flow_delivered(0.02 * i)
+    assert [ranges[0].range(0.01 * i, 3.0) for i in range(200)] == [
+        ranges[1].range(0.01 * i, 3.0) for i in range(200)
+    ]
+
+
 def test_odometry_jump_shifts_later_positions_and_dropouts_withhold_messages() -> None:
     f = _faults(odometry_jumps=[{"t_s": 2.0, "offset_m": [0.5, 0.0, 0.0]}], odometry_dropouts=[[5.0, 6.0]])
 

@@ -123,3 +123,9 @@ def test_the_scenario_key_is_checked() -> None:
         scenario_from_dict({"optical_flow": {"rate_hz": 60}})
     with pytest.raises(ConfigError, match="max_range_m"):
         scenario_from_dict({"optical_flow": {"min_range_m": 5.0}})
+    # a flow fault needs a module to act on: refused in one line without one
+    for fault in ({"flow_dropout_prob": 0.5}, {"flow_dropouts": [[1.0, 2.0]]}):
+        with pytest.raises(ConfigError, match="no optical-flow module") as err:
+            scenario_from_dict({"faults": fault})
+        assert "\n" not in str(err.value)
+        assert scenario_from_dict({"faults": fault, "optical_flow": {}}).faults.acts_on_flow()

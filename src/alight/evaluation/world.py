@@ -566,17 +566,18 @@ class World:
         return self.last_range_m
 
     def flow_sample(self) -> FlowSample | None:
-        """An optical-flow sample now (None: no module, or the surface out of its range). Draws from the
-        module's noise."""
+        """An optical-flow sample now (None: no module, the surface out of its range, or a flow fault
+        dropped it). Draws from the module's noise (and the fault's stream) either way."""
         if self.optical_flow is None:
             return None
         k, x, tr = self.k, self.x, self.truths
-        return self.optical_flow.measure_at(
+        sample = self.optical_flow.measure_at(
             self.t,
             (x[SL_P], x[SL_V], x[SL_Q], x[SL_W]),
             (tr.p_WP[k], tr.v_WP[k], float(tr.yaw[k]), float(tr.yaw_rate[k])),
             self.scenario.platform.pad_size_m,
         )
+        return sample if self.faults.flow_delivered(self.t) else None
 
     def telemetry_arrivals(self) -> tuple[TelemetryFix, ...]:
         """The platform's GNSS fixes that reach the aircraft now (stamped with the time of the fix): a fix

@@ -25,6 +25,9 @@ data on their way into the pipeline. Nothing here knows the pipeline's internals
   still runs underneath: its drift goes on).
 - range finder: a dropout makes the reading invalid (``+inf``, what the TeraRanger driver reports when
   nothing returns); a spurious return replaces it with a reading uniform over the sensor's span.
+- optical flow (a vehicle with ``optical_flow:``): a dropout withholds the sample, as PX4 drops a sample
+  of quality 0 (a dark or featureless surface, a dead module). The pipeline then has no measurement of
+  the deck under the feet, and its gate on it stays silent.
 
 Randomness: every fault draws from its own generator, a child of the ``SeedSequence`` the runner gives
 (a child of the scenario's seed that no other component uses), and draws the same numbers per frame or
@@ -53,7 +56,8 @@ if TYPE_CHECKING:
 Frame = NDArray[np.uint8]
 
 # Child generators of the fault SeedSequence, one per fault (the order fixes the streams).
-_STREAMS = ("drop", "latency", "noise", "occlusion", "exposure", "frozen", "stripes", "range")
+# A new fault's stream goes last: SeedSequence children are numbered, so the others keep their numbers.
+_STREAMS = ("drop", "latency", "noise", "occlusion", "exposure", "frozen", "stripes", "range", "flow")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -140,6 +144,7 @@ class Faults:
         self._last_frame: Frame | list[Observation] | None = None
         self._range_span = range_span_m
         self._range_dropouts = [(float(a), float(b)) for a, b in spec.range_dropouts]
+        self._flow_dropouts = [(float(a), float(b)) for a, b in spec.flow_dropouts]
         self._odo_dropouts = [(float(a), float(b)) for a, b in spec.odometry_dropouts]
         self._jumps = sorted((j.t_s, np.array(j.offset_m, dtype=np.float64)) for j in spec.odometry_jumps)
         self._announced = sorted(j.t_s for j in spec.odometry_jumps if j.announced)
@@ -205,6 +210,16 @@ class Faults:
             lo, hi = self._range_span
             return lo + float(u_value) * (hi - lo)
         return r
+
+    # -- optical flow ----------------------------------------------------------------------------------
+    def flow_delivered(self, t: float) -> bool:
+        """Whether the optical-flow sample taken at ``t`` is delivered (False: dropped). One draw per
+        sample whenever a flow fault is set, whether it fires or not."""
+        s = self.spec
+        if not (s.flow_dropout_prob > 0 or self._flow_dropouts):
+            return True
+        u_drop = float(self._rng["flow"].random())
+        return not (u_drop < s.flow_dropout_prob or _in_any(t, self._flow_dropouts))
 
     # -- camera frames / detections ------------------------------------------------------------------
     def delivery_time(self, t_capture: float) -> float:
