@@ -98,6 +98,12 @@ class Airframe:
         return self.thrust_to_weight * self.weight_N / 4.0
 
     @property
+    def feet_B(self) -> tuple[float, float, float]:
+        """Where the downward sensors sit, in B (m): at the landing-gear feet under the body origin (the
+        range finder and an optical-flow module measure from there)."""
+        return (0.0, 0.0, -self.gear_height)
+
+    @property
     def inertia(self) -> FloatArray:
         return np.diag(self.inertia_diag)
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from alight.errors import ConfigError
-from alight.estimation.optical_flow import horizontal_slip_W
+from alight.estimation.optical_flow import horizontal_slip_W, module_velocity_W
 from alight.scenario import scenario_from_dict
 from alight.sim.sensors import OpticalFlowConfig, OpticalFlowSensor
 
@@ -129,3 +129,37 @@ def test_the_scenario_key_is_checked() -> None:
             scenario_from_dict({"faults": fault})
         assert "\n" not in str(err.value)
         assert scenario_from_dict({"faults": fault, "optical_flow": {}}).faults.acts_on_flow()
+
+
+def test_a_point_at_the_feet_moves_with_the_lever_arm() -> None:
+    # level, pitching at 1 rad/s (w = (0, 1, 0)): a point 0.1 m under the origin moves w x r =
+    # (1 * -0.1, 0, 0): 0.1 m/s backwards
+    v = module_velocity_W(np.array([2.0, 0.0, 0.0]), LEVEL, np.array([0.0, 1.0, 0.0]), (0.0, 0.0, -0.1))
+    np.testing.assert_allclose(v, [1.9, 0.0, 0.0], atol=1e-15)
+    # yawed 90 deg, rolling at 1 rad/s: w x r = (0, 0.1, 0) in B is (-0.1, 0, 0) in W
+    yawed = _q((0.0, 0.0, 1.0), math.pi / 2)
+    v = module_velocity_W(np.zeros(3), yawed, np.array([1.0, 0.0, 0.0]), (0.0, 0.0, -0.1))
+    np.testing.assert_allclose(v, [-0.1, 0.0, 0.0], atol=1e-15)
+    assert module_velocity_W(np.array([1.0, 2.0, 3.0]), yawed, np.ones(3), (0.0, 0.0, 0.0)) == (1.0, 2.0, 3.0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_deck_velocity_under_the_feet_is_recovered_with_the_lever_arm(seed: int) -> None:
+    """Round trip as the pipeline reads a sample (``Pipeline.on_flow``): the module's velocity from the
+    body's state and its mount, less the inverted slip, is the deck's true velocity; without the lever
+    arm it is off by R (w x r)."""
+    rng = np.random.default_rng(100 + seed)
+    origin = (0.0, 0.0, -0.15)
+    q = _q(tuple(rng.normal(size=3)), rng.uniform(0.05, 0.4))
+    w = rng.normal(0.0, 0.8, 3)
+    v_WB = np.array([6.0, 0.0, -0.6]) + rng.normal(0.0, 0.5, 3)
+    deck_v = np.array([5.5, 0.3, 0.0])
+    deck = (np.array([0.0, 0.0, 0.5]), deck_v, 0.2, 0.0)
+    sample = _sensor(origin=origin).measure_at(0.0, (np.array([0.05, -0.05, 1.2]), v_WB, q, w), deck, PAD)
+    assert sample is not None
+    v_S = np.array(module_velocity_W(v_WB, q, w, origin))
+    slip = horizontal_slip_W(sample.flow_B_rad_s, sample.distance_m, w, q, float(v_S[2] - deck_v[2]))
+    assert slip is not None
+    np.testing.assert_allclose(v_S[:2] - slip, deck_v[:2], atol=1e-9)
+    lever = np.linalg.norm((v_S - v_WB)[:2])
+    assert lever > 0.005  # the case has a lever arm to miss (0.15 m x ~0.8 rad/s)

@@ -49,3 +49,24 @@ def horizontal_slip_W(
     b1 = v_x - R[2, 0] * v_rel_z_W
     b2 = v_y - R[2, 1] * v_rel_z_W
     return np.array([(b1 * a22 - a12 * b2) / det, (a11 * b2 - a21 * b1) / det])
+
+
+def module_velocity_W(
+    v_WB: FloatArray, q_WB: FloatArray, w_WB_B: FloatArray, origin_B: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    """The velocity in W (m/s) of a point fixed to the body at ``origin_B`` (m, in B): the body origin's
+    ``v_WB`` plus ``R_WB (w_WB_B x origin_B)``. A flow module at the feet, 0.1-0.2 m under the origin,
+    moves a few cm/s apart from it when the body turns at a fraction of a rad/s; PX4 corrects its flow
+    for this lever arm too (``EKF2_OF_POS_X/Y/Z``)."""
+    rx, ry, rz = origin_B
+    vx, vy, vz = float(v_WB[0]), float(v_WB[1]), float(v_WB[2])
+    if rx == 0.0 and ry == 0.0 and rz == 0.0:
+        return vx, vy, vz
+    wx, wy, wz = float(w_WB_B[0]), float(w_WB_B[1]), float(w_WB_B[2])
+    cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx  # w x r, in B
+    R = quat_to_rotmat(q_WB)
+    return (
+        vx + float(R[0, 0] * cx + R[0, 1] * cy + R[0, 2] * cz),
+        vy + float(R[1, 0] * cx + R[1, 1] * cy + R[1, 2] * cz),
+        vz + float(R[2, 0] * cx + R[2, 1] * cy + R[2, 2] * cz),
+    )

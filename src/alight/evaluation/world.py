@@ -254,7 +254,7 @@ class World:
         rf = s.rangefinder
         self.rangefinder = RangeFinder(
             RangeFinderConfig(
-                origin_B=(0.0, 0.0, -airframe.gear_height),
+                origin_B=airframe.feet_B,
                 min_range_m=rf.min_range_m,
                 max_range_m=rf.max_range_m,
                 noise_std_m=rf.noise_m,
@@ -309,9 +309,9 @@ class World:
         self.flow_every_ticks = 0
         """Ticks between two optical-flow samples (0: no module)."""
         if s.optical_flow is not None:
-            # the scenario's section holds the sensor's own fields; the module sits at the feet
-            feet = (0.0, 0.0, -airframe.gear_height)
-            flow = OpticalFlowConfig(**s.optical_flow.model_dump(), origin_B=feet)
+            # the scenario's section holds the sensor's own fields; the module sits at the feet (where the
+            # pipeline, told the mount as PX4's EKF2_OF_POS_* tell its EKF, compensates the lever arm)
+            flow = OpticalFlowConfig(**s.optical_flow.model_dump(), origin_B=airframe.feet_B)
             self.optical_flow = OpticalFlowSensor(flow, np.random.default_rng(seeds[10]))
             self.flow_every_ticks = round(1.0 / (flow.rate_hz * TICK_DT))
 

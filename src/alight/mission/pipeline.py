@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from alight.control import TiltLimited
 from alight.estimation import EgoFed, PixelMeasured, PositionResetting, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
-from alight.estimation.optical_flow import horizontal_slip_W
+from alight.estimation.optical_flow import horizontal_slip_W, module_velocity_W
 from alight.mission.guidance import Guidance
 from alight.mission.state_machine import Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
@@ -174,8 +174,12 @@ class Pipeline:
         controller: Controller,
         detector: Detector | None = None,
         touchdown_detector: TouchdownDetector | None = None,
+        flow_origin_B: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ) -> None:
+        """``flow_origin_B``: where an optical-flow module sits in B (m), as PX4's ``EKF2_OF_POS_X/Y/Z``
+        give it; the feet's velocity is the body's plus the lever arm's, w x r."""
         self.ego_estimator = ego_estimator
+        self.flow_origin_B = (float(flow_origin_B[0]), float(flow_origin_B[1]), float(flow_origin_B[2]))
         self.detector = detector
         self.geolocator = geolocator
         self.platform_estimator = platform_estimator
@@ -224,7 +228,7 @@ class Pipeline:
         last optical-flow sample; None before one (a vehicle without a module)."""
         self.deck_velocity_W: FloatArray | None = None
         """The horizontal velocity of the surface under the feet (m/s, (2,) in W) from the same sample:
-        the ego estimate's velocity less the slip (the module's lever arm neglected: |w| x 0.1-0.2 m)."""
+        the module's velocity (the ego estimate's, plus the lever arm's w x r) less the slip."""
         self.deck_slip_t = -math.inf
         """Time of that sample (s)."""
         self.last_reference: Reference | None = None
@@ -320,13 +324,14 @@ class Pipeline:
         ego = self.ego()
         if not (math.isfinite(t) and t <= ego.t + FLOW_MAX_AGE_S):
             return  # a sample from the future (a clock gone wrong) is not read
+        v_S_W = module_velocity_W(ego.v_WB, ego.q_WB, ego.w_WB_B, self.flow_origin_B)
         target = self._target  # the mission step's estimate, at most a step old (a deck's vertical speed)
-        v_rel_z = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
+        v_rel_z = float(v_S_W[2]) - (0.0 if target is None else float(target.v_WP[2]))
         slip = horizontal_slip_W(flow_B_rad_s, distance_m, ego.w_WB_B, ego.q_WB, v_rel_z)
         if slip is None:
             return
         self.deck_slip_W = slip
-        self.deck_velocity_W = np.array([float(ego.v_WB[0]) - slip[0], float(ego.v_WB[1]) - slip[1]])
+        self.deck_velocity_W = np.array([float(v_S_W[0]) - slip[0], float(v_S_W[1]) - slip[1]])
         self.deck_slip_t = t
 
     def deck_slip_mps(self, t: float) -> float | None:

@@ -331,6 +331,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
         mission=mission,
         guidance=guidance,
         controller=controller,
+        flow_origin_B=airframe.feet_B,
     )
     return Preset(
         s.preset,
