@@ -145,6 +145,7 @@ class Faults:
         self._range_span = range_span_m
         self._range_dropouts = [(float(a), float(b)) for a, b in spec.range_dropouts]
         self._flow_dropouts = [(float(a), float(b)) for a, b in spec.flow_dropouts]
+        self._flow_active = spec.acts_on_flow()
         self._odo_dropouts = [(float(a), float(b)) for a, b in spec.odometry_dropouts]
         self._jumps = sorted((j.t_s, np.array(j.offset_m, dtype=np.float64)) for j in spec.odometry_jumps)
         self._announced = sorted(j.t_s for j in spec.odometry_jumps if j.announced)
@@ -215,11 +216,10 @@ class Faults:
     def flow_delivered(self, t: float) -> bool:
         """Whether the optical-flow sample taken at ``t`` is delivered (False: dropped). One draw per
         sample whenever a flow fault is set, whether it fires or not."""
-        s = self.spec
-        if not (s.flow_dropout_prob > 0 or self._flow_dropouts):
+        if not self._flow_active:
             return True
         u_drop = float(self._rng["flow"].random())
-        return not (u_drop < s.flow_dropout_prob or _in_any(t, self._flow_dropouts))
+        return not (u_drop < self.spec.flow_dropout_prob or _in_any(t, self._flow_dropouts))
 
     # -- camera frames / detections ------------------------------------------------------------------
     def delivery_time(self, t_capture: float) -> float:
