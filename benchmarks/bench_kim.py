@@ -10,7 +10,10 @@ tilt, through a 640 x 480 pinhole (f = 400 px) and the 752 x 480 default downwar
 
 Keys (a flat dict for ``alight bench``): ``kim_detect_ms_640x480``, ``kim_detect_ms_752x480`` (the whole
 ``RedTargetDetector.detect``: Alg. 1 + 2, contours, selection, centroid), ``kim_color_filter_ms_640x480``,
-``kim_color_filter_ms_752x480`` (Alg. 2 alone), ``kim_detect_gate_shape_ms_752x480`` (with the
+``kim_color_filter_ms_752x480`` (Alg. 2 alone, the compiled one-pass kernel),
+``kim_color_filter_opencv_ms_640x480`` and ``_752x480`` (the same Alg. 2 as OpenCV's whole-image operations,
+:func:`color_filter_opencv`, its peer; every frame checks that both give the same mask),
+``kim_detect_gate_shape_ms_752x480`` (with the
 ``gate+shape`` mitigation), ``kim_detection_rate`` and ``kim_centroid_error_px_median`` (paper mode,
 against the projected target centre, frames where the target is the biggest red blob),
 ``kim_ukf_step_us`` (``KimUkf.update_pixel``: compiled predict + update with eq. 24's roots, 15 sigma
@@ -39,6 +42,7 @@ from alight.perception.color_filter import (
     RedTargetDetector,
     RedTargetDetectorConfig,
     alg1_table,
+    binary_image_of_color,
     color_filter,
     temp_table,
 )
@@ -46,6 +50,18 @@ from alight.perception.flat_earth import FlatEarthGeolocator
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.textures import DistractorSpec, make_ground_texture
 from alight.types import Observation, PlatformMeasurement
+
+
+def color_filter_opencv(image_bgr: np.ndarray, tables: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Alg. 2 with OpenCV's whole-image operations (split, Alg. 1 three times, the 0.6 test, three
+    saturating subtractions): alight's implementation until the one-pass kernel, kept as its peer."""
+    T1, T2 = tables
+    B, G, R = cv2.split(image_bgr)
+    out = cv2.subtract(binary_image_of_color(R, G, B, T1), binary_image_of_color(G, B, R, T1))
+    cv2.subtract(out, binary_image_of_color(B, R, G, T1), dst=out)
+    cv2.subtract(out, cv2.compare(G, cv2.LUT(R, T2), cv2.CMP_GT), dst=out)
+    return out
+
 
 MOUNT = CameraMount.downward()
 # the fisheye of testdata/real/fisheye_ocamcalib/calib_results_0.txt
@@ -150,11 +166,14 @@ def bench_kim(quick: bool = False, repeats: int | None = None) -> dict[str, floa
         for name, cam in cameras().items():
             frames = render_frames(cam, n_per_ground)
             n_frames += len(frames)
-            det_ms, cf_ms, mit_ms = [], [], []
+            det_ms, cf_ms, cv_ms, mit_ms = [], [], [], []
             for fr in frames:
                 img = fr["image"]
                 det_ms.append(1e3 * _best(lambda img=img: plain.detect(img, 0.0), repeats))
                 cf_ms.append(1e3 * _best(lambda img=img: color_filter(img, tables=tables), repeats))
+                cv_ms.append(1e3 * _best(lambda img=img: color_filter_opencv(img, tables), repeats))
+                if not np.array_equal(color_filter(img, tables=tables), color_filter_opencv(img, tables)):
+                    raise AssertionError(f"bench_kim: the two colour filters disagree on a {name} frame")
                 mitigated.set_prediction(fr["px"], 60.0)
                 mit_ms.append(1e3 * _best(lambda img=img: mitigated.detect(img, 0.0), repeats))
                 obs = plain.detect(img, 0.0)
@@ -163,6 +182,7 @@ def bench_kim(quick: bool = False, repeats: int | None = None) -> dict[str, floa
                     errors.append(float(np.hypot(*(obs[0].pixels[0] - fr["px"]))))
             out[f"kim_detect_ms_{name}"] = statistics.median(det_ms)
             out[f"kim_color_filter_ms_{name}"] = statistics.median(cf_ms)
+            out[f"kim_color_filter_opencv_ms_{name}"] = statistics.median(cv_ms)
             if name == "752x480":
                 out["kim_detect_gate_shape_ms_752x480"] = statistics.median(mit_ms)
         out["kim_detection_rate"] = found / n_frames

@@ -69,6 +69,27 @@ def test_vectorised_filter_is_the_pseudo_code(K: float, C: float, ratio: float) 
     assert 0 < np.count_nonzero(ours) < ours.size or K == 0.0
 
 
+def test_filter_on_every_byte_triple_and_on_views() -> None:
+    """The one-pass kernel on all 2^24 (B, G, R) triples against the whole-image formulation of Alg. 1 and
+    2 with numpy (an independent evaluation of the same tables), and on non-contiguous views."""
+    T1, T2 = alg1_table(0.8, 20.0), temp_table(0.6)
+    v = np.arange(256, dtype=np.int32)
+    b, g, r = (a.ravel() for a in np.meshgrid(v, v, v, indexing="ij"))
+    img = np.stack([b, g, r], axis=-1).astype(np.uint8).reshape(4096, 4096, 3)
+    expected = (g + b < T1[r]) & ~(b + r < T1[g]) & ~(r + g < T1[b]) & ~(g > T2[r])
+    assert np.array_equal(color_filter(img, tables=(T1, T2)).ravel() > 0, expected)
+    view = img[::7, ::-3]  # strided and reversed
+    assert np.array_equal(color_filter(view), color_filter(np.ascontiguousarray(view)))
+
+
+@pytest.mark.parametrize(
+    "bad", [np.zeros((8, 8), np.uint8), np.zeros((8, 8, 4), np.uint8), np.zeros((8, 8, 3))]
+)
+def test_filter_refuses_what_is_not_bgr_u8(bad: np.ndarray) -> None:
+    with pytest.raises(ValueError, match="BGR uint8"):
+        color_filter(bad)
+
+
 def test_tables_encode_the_inequalities() -> None:
     T = alg1_table(0.8, 20.0)
     assert T[19] == 0  # 19 >= 0.8 s + 20 for no s
