@@ -26,8 +26,8 @@ rational arithmetic) and one 16-bit comparison replace the floating-point produc
 ``I_G > floor(0.6 I_R)`` likewise. The four tests and the three saturating subtractions are one pass of
 a compiled kernel over the image (:func:`color_filter`): written with OpenCV's whole-image operations
 (``cv2.split``, three ``cv2.add`` to 16 bits, four ``cv2.LUT``, four ``cv2.compare``, three
-``cv2.subtract``) they are 14 passes over the frame and took 2.2x as long (``benchmarks/bench_kim.py``
-times both and checks that they agree).
+``cv2.subtract``) they are 14 passes over the frame and took 2.6-2.8x as long on rendered 640x480 and
+752x480 frames (``benchmarks/bench_kim.py`` times both and checks that they agree).
 
 **Target.** Contours of ``I_CF`` (``cv2.findContours``, Suzuki-Abe, the paper's ref. [9]; outer contours
 only); the biggest (``cv2.contourArea``) is the target and its centroid is the measurement: one
