@@ -2,8 +2,10 @@
 each preset's warm-up with an empty cache.
 
 Run: ``python benchmarks/numba_compile.py [SCENARIO] [--presets P,...]`` (default scenario
-``examples/alight_circle.yaml``, the one the README's first command flies; prints JSON). Each measurement
-is a fresh Python process with ``NUMBA_CACHE_DIR`` pointing to a new, empty directory:
+``examples/alight_circle.yaml``, the one the README's first command flies; prints JSON), or
+``python benchmarks/numba_compile.py --functions PRESET [--top N] [--opt 3,0]`` for where one preset's
+compile goes (below). Each measurement is a fresh Python process with ``NUMBA_CACHE_DIR`` pointing to a
+new, empty directory:
 
 - ``cold``: the process flies the scenario once (``run_mission``, as ``alight fly --no-warmup`` does);
   ``warm``: again with the cache the first one left. The README's first command compiles the same
@@ -20,6 +22,14 @@ only, cache loads excluded; CPU rather than wall time, so other work on the mach
 ``signatures`` the signatures compiled, ``top`` the kernels that dominate, ``cpu_s``/``wall_s`` the
 whole child process (imports included). ``mission_wall_s`` is the mission's ``wall_time_s``: it includes
 the compile here because this benchmark flies without a warm-up, as a measurement of the compile.
+
+``--functions PRESET``: the process compiles the preset's listed kernels (the list
+``alight.parallel_compile`` keeps) and reports every numba function compiled, callees and numba's own
+overloads (``np.empty``'s) included, by the CPU time of its own compiles with its callees' nested
+compiles taken out (``exclusive_s``; the meter's ``by_function``), with ``inclusive_s`` and
+``signatures``; ``functions`` says how many there were. With ``--opt``, the same compile runs again at
+each LLVM optimisation level given (numba's ``NUMBA_OPT``, default 3), each in its own process:
+``by_opt`` says how much of the compile is LLVM's optimiser rather than numba's typing and lowering.
 """
 
 from __future__ import annotations
@@ -39,7 +49,13 @@ from alight.warmup import compile_meter, warm_up
 what, arg = sys.argv[1], sys.argv[2]
 out = {}
 with compile_meter() as m:
-    if what == "scenario":
+    if what == "functions":
+        from alight.parallel_compile import _dispatcher, parse_signature, read_manifest
+        kernels = [k for k in read_manifest() if arg in k.presets]
+        for k in kernels:
+            _dispatcher(k).compile(parse_signature(k.signature))
+        out = {"kernels": len(kernels)}
+    elif what == "scenario":
         from alight.scenario import load_scenario
         from alight.evaluation.runner import run_mission
         r = run_mission(load_scenario(arg), record=True).result
@@ -55,12 +71,21 @@ with compile_meter() as m:
 top = sorted(m.by_kernel.items(), key=lambda kv: -kv[1])[:10]
 out.update({"compile_s": round(m.compile_s, 2), "signatures": m.n_signatures,
             "top": {k: round(v, 2) for k, v in top}})
+if what == "functions":
+    out["functions"] = len(m.by_function)
+    out["by_function"] = [
+        {"function": name, "exclusive_s": round(f.exclusive_s, 2), "inclusive_s": round(f.inclusive_s, 2),
+         "signatures": f.signatures}
+        for name, f in sorted(m.by_function.items(), key=lambda kv: -kv[1].exclusive_s)
+    ]
 print(json.dumps(out))
 """
 
 
-def _child(what: str, arg: str, cache: str) -> dict[str, Any]:
+def _child(what: str, arg: str, cache: str, opt: str | None = None) -> dict[str, Any]:
     env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+    if opt is not None:
+        env["NUMBA_OPT"] = opt
     t0, c0 = time.perf_counter(), os.times()
     run = subprocess.run(
         [sys.executable, "-c", _CHILD, what, arg], env=env, capture_output=True, text=True, check=True
@@ -73,8 +98,35 @@ def _child(what: str, arg: str, cache: str) -> dict[str, Any]:
     return out
 
 
+def functions(preset: str, top: int, opts: list[str]) -> dict[str, Any]:
+    """Where ``preset``'s compile goes, function by function (``--functions``)."""
+    from alight.parallel_compile import read_manifest
+
+    if not any(preset in k.presets for k in read_manifest()):
+        raise SystemExit(f"numba_compile: no listed kernel for preset {preset!r}")
+    with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
+        out = _child("functions", preset, cache)
+    out = {"preset": preset, **out, "by_function": out["by_function"][:top]}
+    if opts:
+        out["by_opt"] = {}
+        for level in opts:
+            with tempfile.TemporaryDirectory(prefix="alight-numba-cache-") as cache:
+                r = _child("functions", preset, cache, opt=level)
+            out["by_opt"][level] = {"compile_s": r["compile_s"], "signatures": r["signatures"]}
+    return out
+
+
 def main() -> None:
     args = sys.argv[1:]
+    if args[:1] == ["--functions"]:
+        flags = dict(zip(args[2::2], args[3::2], strict=False))
+        if len(args) < 2 or len(args) % 2 or set(flags) - {"--top", "--opt"}:
+            raise SystemExit(
+                "usage: python benchmarks/numba_compile.py --functions PRESET [--top N] [--opt 3,0]"
+            )
+        opts = [o for o in flags.get("--opt", "").split(",") if o]
+        print(json.dumps(functions(args[1], int(flags.get("--top", "25")), opts), indent=1))
+        return
     presets = ["alight", "groundtruth", "falanga2017", "kim_kaist", "zamanakos_sdu"]
     if "--presets" in args:
         i = args.index("--presets")

@@ -57,6 +57,21 @@ _WARMUP_BASE: dict[str, Any] = {
 
 
 @dataclass
+class FunctionCompile:
+    """The compiles of one numba function (a kernel, a callee it pulled in, or an overload of numba's own
+    such as ``np.empty``'s) seen by a :func:`compile_meter`."""
+
+    exclusive_s: float = 0.0
+    """CPU time (s) of its own compiles, the nested compiles of its callees taken out: where the compile
+    goes, function by function (the exclusive times of all functions add up to ``compile_s``)."""
+    inclusive_s: float = 0.0
+    """CPU time (s) of its compiles with their nested compiles (a function compiled inside another's
+    compile is counted in both)."""
+    signatures: int = 0
+    """Signatures compiled (cache misses)."""
+
+
+@dataclass
 class CompileMeter:
     """numba compile work seen while the meter is installed (see :func:`compile_meter`)."""
 
@@ -67,33 +82,42 @@ class CompileMeter:
     """Signatures compiled, callees included (cache misses)."""
     by_kernel: dict[str, float] = field(default_factory=dict)
     """Outermost kernel ``module.qualname`` -> CPU seconds of its compile."""
+    by_function: dict[str, FunctionCompile] = field(default_factory=dict)
+    """Every function compiled, callees included, ``module.qualname`` -> its account."""
 
 
 @contextmanager
 def compile_meter() -> Iterator[CompileMeter]:
     """Measure numba compiles in this process while the block runs (loads from the cache do not count:
-    numba signals ``numba:compile`` only on a cache miss)."""
+    numba signals ``numba:compile`` only on a cache miss). numba compiles a kernel's callees inside the
+    kernel's own compile, so the events nest: each open compile keeps its start and the CPU time of the
+    compiles nested in it."""
     from numba.core import event
 
     meter = CompileMeter()
-    stack: list[float] = []
+    stack: list[list[float]] = []  # per open compile: [CPU time at its start, CPU time of nested compiles]
     lock = threading.Lock()
 
     class _Listener(event.Listener):
         def on_start(self, ev: Any) -> None:
             with lock:
-                stack.append(time.process_time())
+                stack.append([time.process_time(), 0.0])
 
         def on_end(self, ev: Any) -> None:
             with lock:
-                t0 = stack.pop()
-                meter.n_signatures += 1
-                if stack:
-                    return
+                t0, nested = stack.pop()
                 dt = time.process_time() - t0
-                meter.compile_s += dt
                 fn = ev.data["dispatcher"].py_func
                 name = f"{fn.__module__}.{fn.__qualname__}"
+                account = meter.by_function.setdefault(name, FunctionCompile())
+                account.exclusive_s += dt - nested
+                account.inclusive_s += dt
+                account.signatures += 1
+                meter.n_signatures += 1
+                if stack:
+                    stack[-1][1] += dt
+                    return
+                meter.compile_s += dt
                 meter.by_kernel[name] = meter.by_kernel.get(name, 0.0) + dt
 
     listener = _Listener()

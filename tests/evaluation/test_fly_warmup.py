@@ -59,3 +59,39 @@ def test_after_the_warm_up_a_mission_compiles_nothing() -> None:
     with warmup.compile_meter() as meter:
         run_mission(load_scenario(ROOT / "examples" / "circle.yaml"), record=True)
     assert meter.n_signatures == 0, meter.by_kernel
+
+
+def test_the_compile_meter_takes_nested_compiles_out_of_each_functions_own_time() -> None:
+    """A kernel compiles its callee inside its own compile: the callee's time is the kernel's inclusive
+    time but not its exclusive time, the exclusive times add up to the outermost compiles' total, and only
+    the kernel is an outermost compile."""
+    import numba
+    import numpy as np
+
+    @numba.njit(cache=False)
+    def callee(x: np.ndarray) -> float:
+        s = 0.0
+        for v in x:
+            s += v * v
+        return s
+
+    @numba.njit(cache=False)
+    def kernel(x: np.ndarray) -> float:
+        return callee(x) + np.sum(np.empty(3))
+
+    with warmup.compile_meter() as meter:
+        kernel(np.ones(4))
+    outer = f"{kernel.py_func.__module__}.{kernel.py_func.__qualname__}"
+    inner = f"{callee.py_func.__module__}.{callee.py_func.__qualname__}"
+    assert set(meter.by_kernel) == {outer}
+    assert meter.by_kernel[outer] == pytest.approx(meter.compile_s)
+    assert {outer, inner} <= set(meter.by_function)
+    k, c = meter.by_function[outer], meter.by_function[inner]
+    assert k.inclusive_s == pytest.approx(meter.compile_s)
+    assert 0.0 < c.inclusive_s < k.inclusive_s
+    assert k.exclusive_s <= k.inclusive_s - c.inclusive_s + 1e-9
+    assert sum(f.exclusive_s for f in meter.by_function.values()) == pytest.approx(meter.compile_s)
+    assert sum(f.signatures for f in meter.by_function.values()) == meter.n_signatures >= 2
+    with warmup.compile_meter() as again:  # compiled now: a call compiles nothing
+        kernel(np.ones(4))
+    assert again.n_signatures == 0 and again.by_function == {}
