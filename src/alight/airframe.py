@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from alight.errors import ConfigError
 from alight.types import GRAVITY_MPS2, FloatArray
 
 
@@ -102,6 +103,22 @@ class Airframe:
         """Where the downward sensors sit, in B (m): at the landing-gear feet under the body origin (the
         range finder and an optical-flow module measure from there)."""
         return (0.0, 0.0, -self.gear_height)
+
+    def downward_sensor_B(
+        self, position_B_m: tuple[float, float, float] | None, key: str
+    ) -> tuple[float, float, float]:
+        """Where a downward sensor sits in B (m): ``position_B_m`` as configured, or :attr:`feet_B` when
+        None. A position below the feet is refused (``key`` names the setting): the sensor would meet the
+        deck before the landing gear does."""
+        if position_B_m is None:
+            return self.feet_B
+        x, y, z = (float(c) for c in position_B_m)
+        if z < -self.gear_height - 1e-9:
+            raise ConfigError(
+                f"{key}: z = {z:g} m puts the sensor {-self.gear_height - z:.3g} m below the landing-gear "
+                f"feet (gear height {self.gear_height:g} m)"
+            )
+        return (x, y, z)
 
     @property
     def inertia(self) -> FloatArray:

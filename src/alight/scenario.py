@@ -49,6 +49,8 @@ MAX_DISTANCE_M = 1.0e4
 
 Coordinate = Annotated[float, Field(ge=-MAX_DISTANCE_M, le=MAX_DISTANCE_M, allow_inf_nan=False)]
 Length = Annotated[float, Field(gt=0, le=MAX_DISTANCE_M, allow_inf_nan=False)]
+MountCoordinate = Annotated[float, Field(ge=-2.0, le=2.0, allow_inf_nan=False)]
+"""A sensor's position on the vehicle along one body axis (m): within 2 m of the body origin."""
 Altitude = Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)]
 RateHz = Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)]
 WindComponent = Annotated[float, Field(ge=-60.0, le=60.0, allow_inf_nan=False)]
@@ -498,6 +500,12 @@ class OpticalFlowSpec(_Strict):
     """Farthest surface its ranger measures (m)."""
     range_noise_m: NonNegFloat = 0.01
     """White noise on its distance (m)."""
+    position_B_m: tuple[MountCoordinate, MountCoordinate, MountCoordinate] | None = None
+    """Where the module sits in the body frame B (m; x forward, y left, z up; what PX4's
+    ``EKF2_OF_POS_X/Y/Z`` give in FRD); None: at the landing-gear feet under the body origin. The
+    simulated module measures from there and the pipeline takes the rotation's velocity at that point
+    (w x r) out of what it reads, on the simulator and on a real vehicle through the bridge alike. It may
+    not sit below the feet (checked against the airframe when the mission is built)."""
 
     @model_validator(mode="after")
     def _checked(self) -> OpticalFlowSpec:

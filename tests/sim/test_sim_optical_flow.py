@@ -143,13 +143,15 @@ def test_a_point_at_the_feet_moves_with_the_lever_arm() -> None:
     assert module_velocity_W(np.array([1.0, 2.0, 3.0]), yawed, np.ones(3), (0.0, 0.0, 0.0)) == (1.0, 2.0, 3.0)
 
 
+@pytest.mark.parametrize("origin", [(0.0, 0.0, -0.15), (0.12, -0.06, -0.05)])
 @pytest.mark.parametrize("seed", range(5))
-def test_the_deck_velocity_under_the_feet_is_recovered_with_the_lever_arm(seed: int) -> None:
+def test_the_deck_velocity_under_the_feet_is_recovered_with_the_lever_arm(
+    seed: int, origin: tuple[float, float, float]
+) -> None:
     """Round trip as the pipeline reads a sample (``Pipeline.on_flow``): the module's velocity from the
-    body's state and its mount, less the inverted slip, is the deck's true velocity; without the lever
-    arm it is off by R (w x r)."""
+    body's state and its mount (at the feet, or off the centre), less the inverted slip, is the deck's
+    true velocity; without the lever arm it is off by R (w x r)."""
     rng = np.random.default_rng(100 + seed)
-    origin = (0.0, 0.0, -0.15)
     q = _q(tuple(rng.normal(size=3)), rng.uniform(0.05, 0.4))
     w = rng.normal(0.0, 0.8, 3)
     v_WB = np.array([6.0, 0.0, -0.6]) + rng.normal(0.0, 0.5, 3)
@@ -163,3 +165,33 @@ def test_the_deck_velocity_under_the_feet_is_recovered_with_the_lever_arm(seed: 
     np.testing.assert_allclose(v_S[:2] - slip, deck_v[:2], atol=1e-9)
     lever = np.linalg.norm((v_S - v_WB)[:2])
     assert lever > 0.005  # the case has a lever arm to miss (0.15 m x ~0.8 rad/s)
+
+
+def _world_and_pipeline_mounts(optical_flow: dict[str, object]) -> tuple[object, object]:
+    from alight.airframes import load_airframe
+    from alight.evaluation.world import SEED_PIPELINE, World, mission_seeds
+    from alight.mission.presets import build_preset
+
+    s = scenario_from_dict({"optical_flow": optical_flow})
+    airframe = load_airframe(s.airframe)
+    seeds = mission_seeds(s.seed)
+    preset = build_preset(s, airframe, np.random.default_rng(seeds[SEED_PIPELINE]))
+    world = World(s, airframe, preset, seeds)
+    assert world.optical_flow is not None
+    return world.optical_flow.config.origin_B, preset.pipeline.flow_origin_B
+
+
+def test_the_modules_mount_is_one_setting_for_the_simulated_module_and_the_pipeline() -> None:
+    """``optical_flow.position_B_m`` places the simulated module and tells the pipeline the same lever
+    arm; unset, both are at the feet; below the feet it is refused in one line."""
+    from alight.airframes import load_airframe
+
+    feet = load_airframe("f450").feet_B
+    assert _world_and_pipeline_mounts({}) == (feet, feet)
+    off = (0.12, -0.06, -0.05)
+    assert _world_and_pipeline_mounts({"position_B_m": list(off)}) == (off, off)
+    with pytest.raises(ConfigError, match=r"optical_flow.position_B_m: z = -0.3 m puts the sensor") as err:
+        _world_and_pipeline_mounts({"position_B_m": [0.0, 0.0, -0.3]})
+    assert "\n" not in str(err.value)
+    with pytest.raises(ConfigError, match=r"optical_flow.position_B_m.0: .* less than or equal to 2"):
+        scenario_from_dict({"optical_flow": {"position_B_m": [3.0, 0.0, 0.0]}})

@@ -309,9 +309,13 @@ class World:
         self.flow_every_ticks = 0
         """Ticks between two optical-flow samples (0: no module)."""
         if s.optical_flow is not None:
-            # the scenario's section holds the sensor's own fields; the module sits at the feet (where the
-            # pipeline, told the mount as PX4's EKF2_OF_POS_* tell its EKF, compensates the lever arm)
-            flow = OpticalFlowConfig(**s.optical_flow.model_dump(), origin_B=airframe.feet_B)
+            # the scenario's section holds the sensor's own fields and its mount (at the feet unless set),
+            # which the pipeline is told as PX4's EKF2_OF_POS_* tell its EKF, to compensate the lever arm
+            spec = s.optical_flow
+            flow = OpticalFlowConfig(
+                **spec.model_dump(exclude={"position_B_m"}),
+                origin_B=airframe.downward_sensor_B(spec.position_B_m, "optical_flow.position_B_m"),
+            )
             self.optical_flow = OpticalFlowSensor(flow, np.random.default_rng(seeds[10]))
             self.flow_every_ticks = round(1.0 / (flow.rate_hz * TICK_DT))
 

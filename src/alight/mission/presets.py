@@ -331,7 +331,11 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
         mission=mission,
         guidance=guidance,
         controller=controller,
-        flow_origin_B=airframe.feet_B,
+        flow_origin_B=(
+            airframe.feet_B
+            if s.optical_flow is None
+            else airframe.downward_sensor_B(s.optical_flow.position_B_m, "optical_flow.position_B_m")
+        ),
     )
     return Preset(
         s.preset,
