@@ -561,8 +561,41 @@ def test_time_budget_aborts(mode: Mode) -> None:
     late = CFG.time_budget_s + 1.0
     e = ego(p=(5.0, 0.0, 3.0), v=(1.0, 0, 0))
     status = m.step(late, e, target(late, age=0.0 if mode is not Mode.SEARCH else 50.0), None)
+    if mode is Mode.LAND:  # a descent goes around first; at the tracking height, the abort
+        assert status.mode is Mode.GO_AROUND and status.reason == "time budget spent"
+        status = m.step(late + 0.1, e, target(late + 0.1), None)
     assert status.mode is Mode.ABORT and status.reason == "time budget spent"
     assert m.abort_reason == "time budget spent"
+
+
+@pytest.mark.parametrize("cause", ["retry limit", "time budget"])
+def test_a_limit_reached_low_in_a_descent_aborts_once_the_go_around_has_climbed(cause: str) -> None:
+    """Past the retry limit or the time budget, a go-around from the committed descent still climbs to
+    the tracking height before the final action starts (which brakes to a hover point: started
+    centimetres over a moving deck, it met the deck)."""
+    cfg = dataclasses.replace(CFG, max_go_arounds=0) if cause == "retry limit" else CFG
+    m = at_mode(Mode.LAND, cfg)
+    t = CFG.time_budget_s + 1.0 if cause == "time budget" else 3.0
+    low = ego(p=(5.0, 0.0, PAD_Z + 0.3), v=(1.0, 0.0, -0.4))
+    # the retry limit: the deck under the feet leaves the estimate in the committed descent (optical flow)
+    first = m.step(t, low, target(t), None, deck_velocity_W=np.array([3.0, 0.0]))
+    assert first.mode is Mode.GO_AROUND
+    for k, z in enumerate((0.25, 1.0, 2.0)):  # climbing, still below the tracking height
+        tk = t + 0.1 * (k + 1)
+        climbing = ego(p=(5.0, 0.0, PAD_Z + z), v=(1.0, 0.0, 0.5))
+        assert m.step(tk, climbing, target(tk), None).mode is Mode.GO_AROUND
+    assert m.abort_reason is None and "retry_limit" not in kinds(m)
+    top = t + 1.0
+    status = m.step(top, ego(p=(5.0, 0.0, PAD_Z + CFG.track_height_m)), target(top), None)
+    expected = "too many go-arounds" if cause == "retry limit" else "time budget spent"
+    assert status.mode is Mode.ABORT and status.reason == expected and m.abort_reason == expected
+    assert ("retry_limit" in kinds(m)) is (cause == "retry limit")
+
+
+def test_without_an_estimate_a_go_around_past_the_limit_aborts_at_once() -> None:
+    m = at_mode(Mode.GO_AROUND, dataclasses.replace(CFG, max_go_arounds=0))
+    status = m.step(4.0, ego(p=(5.0, 0.0, PAD_Z + 0.3)), None, None)
+    assert status.mode is Mode.ABORT and status.reason == "too many go-arounds"
 
 
 def test_final_action_hover_climbs_holds_and_completes() -> None:
