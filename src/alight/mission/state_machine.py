@@ -20,7 +20,7 @@ Paper 000 has four states: takeoff, exploration, platform tracking, landing. We 
   when those are set; while a gate is only marginal the descent holds its height (``descent_hold``).
 - ``ABORT``: the take-off did not finish in time, too many go-arounds or target losses, or the time
   budget is spent. In a descent, the abort comes at the end of a go-around, at the tracking height: the
-  final action never starts from centimetres over a moving deck. ABORT performs the ``final_action``:
+  final action never starts just over a moving deck. ABORT performs the ``final_action``:
   ``hover`` (climb to the exploration altitude and hold), ``return`` (fly to the take-off point at the
   exploration altitude and land there) or ``land_in_place``; ``final_action_complete`` says when it is
   done (hovering steadily at the hold point for ``abort_hover_s``, or touchdown detected on board).
@@ -547,9 +547,9 @@ class Mission:
         elif mode is Mode.GO_AROUND:
             # A go-around is flown to its end, the tracking height over the deck, also past the retry
             # limit or the time budget: the final action then starts clear of the deck. Started in the
-            # committed descent, a few centimetres over a deck at 5 m/s, the final action's climb (from
-            # rest, toward a hover point that stays behind) kept sinking for 0.8 s while the vehicle
-            # braked, and met the deck 0.8 m off its centre at 1.6 m/s (the envelope's figure-8, 2026-11-29).
+            # committed descent, a quarter metre over a deck at 5 m/s, the final action's climb (a long
+            # move to a hover point that stays behind) kept sinking for 0.8 s while the vehicle braked,
+            # and met the deck 0.8 m off its centre at 1.6 m/s (the envelope's figure-8, 2026-11-29).
             # Without an estimate the deck's height is unknown: the limits act at once, as before.
             if target is not None:
                 regained = float(ego.p_WB[2] - target.p_WP[2]) > cfg.track_height_m - cfg.hover_tolerance_m
