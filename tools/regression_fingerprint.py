@@ -25,12 +25,30 @@ TELEMETRY = {"rate_hz": 10, "noise_m": 0.5, "bias_m": 1.0, "latency_s": 0.2, "dr
 
 # (name, scenario dict): the closed-loop regression conditions of tests/integration, one or two per preset
 CASES: list[tuple[str, dict[str, Any]]] = [
-    ("groundtruth straight 1.2 s1", {"preset": "groundtruth", "seed": 1, "platform": {"path": "straight", "speed_mps": 1.2}}),
-    ("groundtruth figure8 4.2 s5", {"preset": "groundtruth", "seed": 5, "platform": {"path": "figure8", "speed_mps": 4.2}}),
-    ("falanga2017 circle 2.0 s2", {"preset": "falanga2017", "seed": 2, "platform": {"path": "circle", "speed_mps": 2.0}}),
-    ("falanga2017 figure8 4.2 s3", {"preset": "falanga2017", "seed": 3, "platform": {"path": "figure8", "speed_mps": 4.2}}),
-    ("kim_kaist straight 1.5 s1", {"preset": "kim_kaist", "seed": 1, "platform": {"path": "straight", "speed_mps": 1.5}}),
-    ("zamanakos_sdu straight 1.5 s1", {"preset": "zamanakos_sdu", "seed": 1, "platform": {"path": "straight", "speed_mps": 1.5}}),
+    (
+        "groundtruth straight 1.2 s1",
+        {"preset": "groundtruth", "seed": 1, "platform": {"path": "straight", "speed_mps": 1.2}},
+    ),
+    (
+        "groundtruth figure8 4.2 s5",
+        {"preset": "groundtruth", "seed": 5, "platform": {"path": "figure8", "speed_mps": 4.2}},
+    ),
+    (
+        "falanga2017 circle 2.0 s2",
+        {"preset": "falanga2017", "seed": 2, "platform": {"path": "circle", "speed_mps": 2.0}},
+    ),
+    (
+        "falanga2017 figure8 4.2 s3",
+        {"preset": "falanga2017", "seed": 3, "platform": {"path": "figure8", "speed_mps": 4.2}},
+    ),
+    (
+        "kim_kaist straight 1.5 s1",
+        {"preset": "kim_kaist", "seed": 1, "platform": {"path": "straight", "speed_mps": 1.5}},
+    ),
+    (
+        "zamanakos_sdu straight 1.5 s1",
+        {"preset": "zamanakos_sdu", "seed": 1, "platform": {"path": "straight", "speed_mps": 1.5}},
+    ),
     (
         "zamanakos_sdu gusts s2",
         {
@@ -40,14 +58,27 @@ CASES: list[tuple[str, dict[str, Any]]] = [
             "wind": {"model": "gust", "gust_power_N": 7.76},
         },
     ),
-    ("alight circle 2 s1", {"preset": "alight", "seed": 1, "duration_s": 90, "platform": {"path": "circle", "speed_mps": 2.0}}),
+    (
+        "alight circle 2 s1",
+        {"preset": "alight", "seed": 1, "duration_s": 90, "platform": {"path": "circle", "speed_mps": 2.0}},
+    ),
     (
         "alight straight 9 telemetry s2",
-        {"preset": "alight", "seed": 2, "duration_s": 90, "platform": {"path": "straight", "speed_mps": 9.0, "telemetry": TELEMETRY}},
+        {
+            "preset": "alight",
+            "seed": 2,
+            "duration_s": 90,
+            "platform": {"path": "straight", "speed_mps": 9.0, "telemetry": TELEMETRY},
+        },
     ),
 ]
-QUICK = {"groundtruth straight 1.2 s1", "falanga2017 circle 2.0 s2", "kim_kaist straight 1.5 s1",
-         "zamanakos_sdu straight 1.5 s1", "alight circle 2 s1"}
+QUICK = {
+    "groundtruth straight 1.2 s1",
+    "falanga2017 circle 2.0 s2",
+    "kim_kaist straight 1.5 s1",
+    "zamanakos_sdu straight 1.5 s1",
+    "alight circle 2 s1",
+}
 
 # result fields measured on the wall clock or the CPU, which no refactoring can keep
 CLOCK_WORDS = ("wall", "cpu", "controller_time", "block_time", "compute_time", "elapsed", "per_tick", "_us")
