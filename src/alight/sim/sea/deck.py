@@ -44,6 +44,7 @@ from alight.types import FloatArray
 __all__ = ["DeckMotion", "PadKinematics", "VesselPath"]
 
 _IX = {name: i for i, name in enumerate(AXES)}
+_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -174,8 +175,10 @@ class DeckMotion:
         """The sea's six axes (``AXES`` order: m, m, m, rad, rad, rad) and their first and second time
         derivatives at the times t, each of shape (T, 6)."""
         t = np.asarray(t, dtype=np.float64).reshape(-1)
-        ph = np.outer(t, self.w_e)
-        q = np.cos(ph) @ self._re - np.sin(ph) @ self._im
+        q = np.empty((t.shape[0], 18))
+        for i in range(0, t.shape[0], _CHUNK):  # bounded memory on long records
+            ph = np.outer(t[i : i + _CHUNK], self.w_e)
+            q[i : i + _CHUNK] = np.cos(ph) @ self._re - np.sin(ph) @ self._im
         return q[:, 0:6], q[:, 6:12], q[:, 12:18]
 
     def axis(self, name: str, t: FloatArray, d: int = 0) -> FloatArray:
