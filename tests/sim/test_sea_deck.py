@@ -145,3 +145,5 @@ def test_same_seed_same_deck_and_a_scalar_time_works():
     np.testing.assert_array_equal(one.p_WP[0], a.p_WP[7])
     with pytest.raises(ValueError, match="states for"):
         deck.pad(t, VesselPath.straight(t[:3], 2.0, 0.0))
+    with pytest.raises(ValueError, match="finite"):
+        deck.pad(np.array([math.nan]), VesselPath.straight(np.zeros(1), 2.0, 0.0))

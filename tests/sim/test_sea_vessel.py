@@ -32,6 +32,22 @@ def test_three_packaged_classes_with_a_source_on_every_number():
         assert v.roll_damping < v.heave_damping  # roll is the lightly damped axis
 
 
+@pytest.mark.parametrize(
+    ("name", "c_b", "c_wp", "gm_m"),
+    [("small_usv", 0.45, 0.75, 0.8), ("patrol_boat", 0.45, 0.75, 1.2), ("frigate", 0.507, 0.78, 2.0)],
+)
+def test_the_packaged_periods_follow_from_the_formulas_their_sources_name(name, c_b, c_wp, gm_m):
+    # heave 2 pi sqrt(2 d C_B / (C_wp g)); roll (Weiss, IMO IS Code 2008 2.3.4) 2 C B / sqrt(GM) with
+    # C = 0.373 + 0.023 B/d - 0.043 L/100; pitch = heave; the files round to 0.1 s
+    v = load_vessel(name)
+    t_heave = 2 * math.pi * math.sqrt(2 * v.draft_m * c_b / (c_wp * 9.81))
+    c = 0.373 + 0.023 * v.beam_m / v.draft_m - 0.043 * v.length_m / 100
+    t_roll = 2 * c * v.beam_m / math.sqrt(gm_m)
+    assert v.heave_period_s == pytest.approx(t_heave, abs=0.05)
+    assert v.pitch_period_s == v.heave_period_s
+    assert v.roll_period_s == pytest.approx(t_roll, abs=0.05)
+
+
 def test_a_vessel_file_by_path_round_trips(tmp_path):
     data = yaml.safe_load((PACKAGED / "patrol_boat.yaml").read_text())
     data["name"] = "my_boat"

@@ -194,6 +194,8 @@ class DeckMotion:
         n = t.shape[0]
         if path.yaw.shape[0] != n:
             raise ValueError(f"path has {path.yaw.shape[0]} states for {n} times")
+        if not np.isfinite(t).all():
+            raise ValueError("deck times must be finite")
         out = np.empty((n, 8, 3))
         _pad_kernel(
             t,
