@@ -129,6 +129,18 @@ def test_on_a_platform_path_the_kinematics_match_finite_differences():
     assert _rel((kp.v_WP - km.v_WP) / (2 * H), k.a_WP) < 1e-6
 
 
+def test_one_platform_state_gives_the_same_pad_as_the_vectorised_call():
+    config = SeaConfig(sea_state=4, vessel="small_usv", wave_direction_deg=135.0)
+    deck = DeckMotion.from_config(config, np.random.default_rng(2), 1.5)
+    plat = Platform(PlatformConfig(path="figure8", speed_mps=1.5, pad_height_m=0.0))
+    t = np.array([0.0, 3.3, 17.9])
+    many = deck.pad(t, VesselPath.from_states(plat.states(t)))
+    for i, ti in enumerate(t):
+        one = deck.pad(np.array([ti]), VesselPath.from_truth(plat.state(float(ti))))
+        for field in ("p_WP", "R_WP", "v_WP", "a_WP", "w_WP_W", "dw_WP_W"):
+            np.testing.assert_allclose(getattr(one, field)[0], getattr(many, field)[i], rtol=0, atol=1e-12)
+
+
 def test_same_seed_same_deck_and_a_scalar_time_works():
     config = SeaConfig(sea_state=3, vessel="small_usv", wave_direction_deg=90.0)
     t = np.linspace(0.0, 20.0, 41)

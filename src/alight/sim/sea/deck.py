@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from alight.sim.platform import PlatformStates
+from alight.sim.platform import PlatformStates, PlatformTruth
 from alight.sim.sea.config import SeaConfig
 from alight.sim.sea.response import AXES, response_coefficients
 from alight.sim.sea.vessel import Vessel
@@ -72,6 +72,18 @@ class VesselPath:
         n = len(states)
         dd = np.zeros(n) if yaw_accel is None else np.asarray(yaw_accel, dtype=np.float64).reshape(n)
         return cls(states.p_WP, states.v_WP, states.a_WP, states.yaw, states.yaw_rate, dd)
+
+    @classmethod
+    def from_truth(cls, truth: PlatformTruth, yaw_accel: float = 0.0) -> VesselPath:
+        """From one platform state (a physics tick); ``yaw_accel`` as in :meth:`from_states`."""
+        return cls(
+            truth.p_WP.reshape(1, 3),
+            truth.v_WP.reshape(1, 3),
+            truth.a_WP.reshape(1, 3),
+            np.array([truth.yaw]),
+            np.array([truth.yaw_rate]),
+            np.array([float(yaw_accel)]),
+        )
 
     @classmethod
     def straight(cls, t: FloatArray, speed_mps: float, heading_rad: float) -> VesselPath:
