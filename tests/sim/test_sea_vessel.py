@@ -143,6 +143,11 @@ def test_sea_config_gives_hs_and_tp():
             "off the small_usv's hull",
         ),
         ({"sea_state": 3, "pad_offset_m": (0.0, math.nan, 0.5)}, "three finite numbers"),
+        ({"sea_state": 3, "pad_offset_m": 1.0}, "three finite numbers"),
+        ({"sea_state": 3, "pad_offset_m": ("a", 0.0, 0.0)}, "three finite numbers"),
+        ({"hs_m": "1.5", "tp_s": 6.0}, "hs_m must be a number"),
+        ({"sea_state": 3, "wave_direction_deg": True}, "must be a number"),
+        ({"sea_state": 3, "vessel": ""}, "must name a vessel"),
     ],
 )
 def test_bad_sea_settings_are_one_line(kwargs, needle):

@@ -43,6 +43,12 @@ class SeaConfig:
     """The pad's position on the vessel, FLU from the centre of motion (m); None: the vessel's own."""
 
     def __post_init__(self) -> None:
+        for name in ("hs_m", "tp_s", "gamma", "wave_direction_deg"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+                raise ConfigError(f"platform.sea.{name} must be a number, got {value!r}")
+        if not isinstance(self.vessel, str) or not self.vessel:
+            raise ConfigError(f"platform.sea.vessel must name a vessel class or file, got {self.vessel!r}")
         if self.sea_state is None and self.hs_m is None:
             raise ConfigError("platform.sea needs sea_state or hs_m (with tp_s)")
         if self.sea_state is not None and self.hs_m is not None:
@@ -83,8 +89,12 @@ class SeaConfig:
         if self.pad_offset_m is None:
             return
         r = self.pad_offset_m
-        if len(r) != 3 or not all(math.isfinite(float(x)) for x in r):
-            raise ConfigError(f"platform.sea.pad_offset_m must be three finite numbers, got {r}")
+        try:
+            ok = len(r) == 3 and all(math.isfinite(float(x)) for x in r)
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ConfigError(f"platform.sea.pad_offset_m must be three finite numbers, got {r!r}")
         if abs(r[0]) > vessel.length_m / 2 or abs(r[1]) > vessel.beam_m / 2:
             raise ConfigError(
                 f"platform.sea.pad_offset_m {list(r)} is off the {vessel.name}'s hull "

@@ -157,6 +157,8 @@ class DeckMotion:
         self.speed_mps = float(speed_mps)
         self.mu_rad = float(mu_rad)
         self.r_B = np.array(vessel.pad_offset_m if pad_offset_m is None else pad_offset_m, dtype=np.float64)
+        if self.r_B.shape != (3,) or not np.isfinite(self.r_B).all():
+            raise ValueError(f"pad_offset_m must be three finite numbers, got {pad_offset_m!r}")
         c, w_e = response_coefficients(waves, vessel, self.speed_mps, self.mu_rad)
         self.coefficients = c
         """Complex amplitude of each axis (rows in ``AXES`` order) and component, shape (6, N)."""
