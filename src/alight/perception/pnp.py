@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -46,14 +46,26 @@ class PnpResult:
     """Number of correspondences used."""
 
 
-def camera_matrices(camera: Any) -> tuple[FloatArray, FloatArray]:
-    """``(K (3, 3), dist (k,))`` of a pinhole camera model: anything with ``K`` and optionally ``dist``
-    in OpenCV's order (k1, k2, p1, p2[, k3 ...])."""
+class PinholeIntrinsics(Protocol):
+    """What PnP needs of a camera: a pinhole model's intrinsics (:class:`alight.cameras.PinholeCamera`)."""
+
+    @property
+    def K(self) -> FloatArray:
+        """Camera matrix (3, 3), px."""
+        ...
+
+    @property
+    def dist(self) -> FloatArray:
+        """Distortion coefficients in OpenCV's order (k1, k2, p1, p2[, k3 ...]); zeros: none."""
+        ...
+
+
+def camera_matrices(camera: PinholeIntrinsics) -> tuple[FloatArray, FloatArray]:
+    """``(K (3, 3), dist (k,))`` of a pinhole camera model."""
     K = np.asarray(camera.K, dtype=np.float64)
     if K.shape != (3, 3) or not np.isfinite(K).all():
         raise ValueError(f"camera.K must be a finite (3, 3) matrix, got shape {K.shape}")
-    dist = getattr(camera, "dist", None)
-    d = np.zeros(0) if dist is None else np.asarray(dist, dtype=np.float64).ravel()
+    d = np.asarray(camera.dist, dtype=np.float64).ravel()
     if not np.isfinite(d).all():
         raise ValueError("camera.dist must be finite")
     return K, d
@@ -78,12 +90,12 @@ def project_with_jacobian(
 def solve_pnp(
     pixels: FloatArray,
     points_P: FloatArray,
-    camera: Any,
+    camera: PinholeIntrinsics,
     sigma_px: float = 1.0,
 ) -> PnpResult | None:
     """Pose of the pad in the camera frame from ``pixels`` (N, 2) seen at ``points_P`` (N, 3, m).
 
-    ``camera`` is a pinhole model (``K`` (3, 3) and optional ``dist``). ``sigma_px`` is the standard
+    ``camera`` is a pinhole model (``K`` (3, 3) and ``dist``). ``sigma_px`` is the standard
     deviation of the pixel noise used for the covariance (px). Returns None when the problem is
     degenerate (fewer than 4 points, collinear points, or a solution behind the camera).
 
