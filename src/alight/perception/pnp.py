@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -87,6 +87,57 @@ def project_with_jacobian(
     return np.asarray(px, dtype=np.float64).reshape(-1, 2), np.asarray(jac, dtype=np.float64)[:, :6].copy()
 
 
+_Candidate = tuple[float, FloatArray, FloatArray]
+"""A PnP solution: its reprojection error (px; nan when the solver gave none), ``rvec`` and ``tvec``."""
+
+
+def _in_front(n_sol: int, rvecs: Any, tvecs: Any, errs: Any) -> list[_Candidate]:
+    """The solver's finite solutions with the pad in front of the camera, with their errors."""
+    e = np.asarray(errs, dtype=np.float64).ravel() if errs is not None else np.zeros(0)
+    candidates = []
+    for k in range(n_sol):
+        rv = np.asarray(rvecs[k], dtype=np.float64).reshape(3, 1)
+        tv = np.asarray(tvecs[k], dtype=np.float64).reshape(3, 1)
+        if np.isfinite(rv).all() and np.isfinite(tv).all() and tv[2, 0] > 0:
+            candidates.append((float(e[k]) if e.size == n_sol else math.nan, rv, tv))
+    return candidates
+
+
+def _best_refined(
+    candidates: list[_Candidate],
+    obj: FloatArray,
+    img: FloatArray,
+    K: FloatArray,
+    d: FloatArray | None,
+    pts: FloatArray,
+    px: FloatArray,
+    dist: FloatArray,
+) -> _Candidate | None:
+    """The candidate with the smallest RMS reprojection error after LM refinement, as (rms, rvec (3,),
+    tvec (3,)).
+
+    IPPE's two solutions (the planar ambiguity) come with their reprojection errors. Refining both costs
+    half of the solve; a solution with an error over 4x (and 1 px above) the best one's in front of the
+    camera is in another basin, which LM refinement (a local step) cannot turn into the better fit."""
+    errors = [c[0] for c in candidates if math.isfinite(c[0])]
+    e_best = min(errors) if len(errors) == len(candidates) and errors else math.inf
+    best: _Candidate | None = None
+    for err, rv, tv in candidates:
+        if err > max(4.0 * e_best, e_best + 1.0):
+            continue
+        try:
+            rv_lm, tv_lm = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
+            # the refined float64 rv, tv (no conversion); OpenCV's stubs type them MatLike, without the dtype
+            rv, tv = np.asarray(rv_lm, dtype=np.float64), np.asarray(tv_lm, dtype=np.float64)
+        except cv2.error:
+            pass
+        proj, _ = project_with_jacobian(pts, rv, tv, K, dist)
+        rms = float(np.sqrt(np.mean(np.sum((proj - px) ** 2, axis=1))))
+        if best is None or rms < best[0]:
+            best = (rms, rv.ravel().copy(), tv.ravel().copy())
+    return best
+
+
 def solve_pnp(
     pixels: FloatArray,
     points_P: FloatArray,
@@ -127,32 +178,8 @@ def solve_pnp(
         n_sol, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, K, d, flags=flag)
     except cv2.error:
         return None
-    # IPPE's two solutions (the planar ambiguity) come with their reprojection errors. Refining both costs
-    # half of the solve; a solution with an error over 4x (and 1 px above) the best one's in front of the
-    # camera is in another basin, which LM refinement (a local step) cannot turn into the better fit.
-    e = np.asarray(errs, dtype=np.float64).ravel() if errs is not None else np.zeros(0)
-    candidates = []
-    for k in range(int(n_sol)):
-        rv = np.asarray(rvecs[k], dtype=np.float64).reshape(3, 1)
-        tv = np.asarray(tvecs[k], dtype=np.float64).reshape(3, 1)
-        if np.isfinite(rv).all() and np.isfinite(tv).all() and tv[2, 0] > 0:
-            candidates.append((float(e[k]) if e.size == int(n_sol) else math.nan, rv, tv))
-    errors = [c[0] for c in candidates if math.isfinite(c[0])]
-    e_best = min(errors) if len(errors) == len(candidates) and errors else math.inf
-    best: tuple[float, FloatArray, FloatArray] | None = None
-    for err, rv, tv in candidates:
-        if err > max(4.0 * e_best, e_best + 1.0):
-            continue
-        try:
-            rv_lm, tv_lm = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
-            # the refined float64 rv, tv (no conversion); OpenCV's stubs type them MatLike, without the dtype
-            rv, tv = np.asarray(rv_lm, dtype=np.float64), np.asarray(tv_lm, dtype=np.float64)
-        except cv2.error:
-            pass
-        proj, _ = project_with_jacobian(pts, rv, tv, K, dist)
-        rms = float(np.sqrt(np.mean(np.sum((proj - px) ** 2, axis=1))))
-        if best is None or rms < best[0]:
-            best = (rms, rv.ravel().copy(), tv.ravel().copy())
+    candidates = _in_front(int(n_sol), rvecs, tvecs, errs)
+    best = _best_refined(candidates, obj, img, K, d, pts, px, dist)
     if best is None:
         return None
     rms, rvec, tvec = best
