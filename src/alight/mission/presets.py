@@ -10,26 +10,30 @@ it (the camera model and mount, the pad to draw, the low-level gains).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from alight.airframe import Airframe
-from alight.blockspec import NoContext
+from alight.blockspec import BlockSpec, NoContext
 from alight.cameras import CameraModel, MountedCamera
 from alight.cameras.pinhole import CameraMount
+from alight.control import CONTROLLERS
 from alight.control.rate import RateControllerGains
 from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosEnergyModel, QosSetting
+from alight.estimation import PLATFORM_ESTIMATORS
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
-from alight.mission.blocks import EffectiveBlocks, preset_names, resolve_blocks
+from alight.mission.blocks import Block, EffectiveBlocks, preset_names, resolve_blocks
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
 from alight.mission.touchdown_detector import TouchdownConfig
-from alight.pads import PadDesign, WholeMarkerPad
-from alight.perception import Detector, DetectorContext
+from alight.pads import PADS, PadDesign, WholeMarkerPad
+from alight.perception import DETECTORS, GEOLOCATORS, Detector, DetectorContext
 from alight.perception.qos_detector import QosDetector
+from alight.planning import PLANNERS
 from alight.types import GRAVITY_MPS2
 
 # The ego EKF's noise model: the data sheet of the vehicle's IMU and the VIO's reported accuracy. These
@@ -66,6 +70,9 @@ class Preset:
     blocks: EffectiveBlocks | None = None
     """The blocks it was built from (names and parameters)."""
 
+
+_C = TypeVar("_C")
+_T = TypeVar("_T")
 
 PRESETS: tuple[str, ...] = preset_names()
 """The packaged presets (``mission/preset_data/*.yaml``)."""
@@ -199,18 +206,15 @@ def _vision(s: Any, eff: EffectiveBlocks) -> tuple[CameraModel | None, PadDesign
     """The camera model, the pad and the detector of a vision preset."""
     d = eff["detector"]
     camera = eff.camera_model
-    p = eff["pad"]
-    pad: PadDesign = p.spec.build(p.params, NoContext())
-    detector: Detector | None = d.spec.build(
-        d.params, DetectorContext(pad=pad, camera=camera, qos_policy=_qos_policy(s))
-    )
+    pad = _build(PADS, eff["pad"], NoContext())
+    detector = _build(DETECTORS, d, DetectorContext(pad=pad, camera=camera, qos_policy=_qos_policy(s)))
     return camera, pad, detector
 
 
-def _build(eff: EffectiveBlocks, stage: str, context: Any) -> Any:
-    """The object of ``stage``'s chosen block, from its parameters and the stage's build context."""
-    block = eff[stage]
-    return block.spec.build(block.params, context)
+def _build(table: Mapping[str, BlockSpec[_C, _T]], block: Block, context: _C) -> _T:
+    """The object of the chosen ``block``, from its parameters and its stage's build context (``table``:
+    the stage's registry, which types what it builds)."""
+    return table[block.name].build(block.params, context)
 
 
 def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) -> Preset:
@@ -226,7 +230,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     area = s.search_area
     guidance = Guidance(
         mission.config,
-        _build(eff, "planner", airframe),
+        _build(PLANNERS, eff["planner"], airframe),
         GuidanceConfig(
             search_area=(area.x_min, area.x_max, area.y_min, area.y_max),
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
@@ -256,11 +260,11 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     pipeline = Pipeline(
         ego_estimator=EgoEkf(_EGO_EKF_CONFIG),
         detector=detector,
-        geolocator=_build(eff, "geolocator", view),
-        platform_estimator=_build(eff, "platform_estimator", view),
+        geolocator=_build(GEOLOCATORS, eff["geolocator"], view),
+        platform_estimator=_build(PLATFORM_ESTIMATORS, eff["platform_estimator"], view),
         mission=mission,
         guidance=guidance,
-        controller=_build(eff, "controller", airframe),
+        controller=_build(CONTROLLERS, eff["controller"], airframe),
         flow_origin_B=(
             airframe.feet_B
             if s.optical_flow is None
