@@ -31,10 +31,11 @@ from typing import Any
 
 import numpy as np
 
+from alight.cameras import CameraMount, MountedCamera
 from alight.errors import EstimationError, ImageError
-from alight.estimation import EGO_REGISTRY
-from alight.estimation import REGISTRY as ESTIMATORS
-from alight.perception import REGISTRY as DETECTORS
+from alight.estimation import PLATFORM_ESTIMATORS as ESTIMATORS
+from alight.estimation import EgoEkf, EgoEkfConfig
+from alight.perception.detect_cli import detector_names, make_detector
 from alight.perception.image_input import MAX_PIXELS
 from alight.types import PlatformMeasurement
 
@@ -106,8 +107,8 @@ def corrupt_frames(rng: np.random.Generator) -> Iterator[tuple[str, Any, float]]
 
 def run_detectors(n_frames: int, seed: int, limit_s: float, names: list[str] | None = None) -> dict[str, Any]:
     out: dict[str, Any] = {}
-    for name in sorted(DETECTORS) if names is None else names:
-        det = DETECTORS[name]()
+    for name in sorted(detector_names()) if names is None else names:
+        det = make_detector(name)
         rng = np.random.default_rng(seed)
         counts = {"frames": 0, "crashes": 0, "hangs": 0, "refused": 0, "false_detections": 0}
         examples: list[str] = []
@@ -201,7 +202,7 @@ def run_platform_estimators(n_bad: int, seed: int, limit_s: float) -> dict[str, 
     out: dict[str, Any] = {}
     for name in sorted(ESTIMATORS):
         rng = np.random.default_rng(seed)
-        est = ESTIMATORS[name]()
+        est = ESTIMATORS[name].build_default(MountedCamera(camera=None, mount=CameraMount.downward()))
         counts = {"bad": 0, "crashes": 0, "hangs": 0, "refused": 0, "nan_states": 0, "good_after_bad": 0}
         good_used = 0
         examples: list[str] = []
@@ -254,9 +255,9 @@ def run_platform_estimators(n_bad: int, seed: int, limit_s: float) -> dict[str, 
 
 def run_ego(n_bad: int, seed: int, limit_s: float) -> dict[str, Any]:
     out: dict[str, Any] = {}
-    for name in sorted(EGO_REGISTRY):
+    for name in ("eskf",):  # the flight's ego estimator
         rng = np.random.default_rng(seed)
-        ekf: Any = EGO_REGISTRY[name]()
+        ekf: Any = EgoEkf(EgoEkfConfig())
         q = np.array([0.0, 0.0, 0.0, 1.0])
         ekf.initialize(0.0, np.zeros(3), np.zeros(3), q)
         counts = {"bad": 0, "crashes": 0, "hangs": 0, "refused": 0, "nan_states": 0}

@@ -343,7 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     det = sub.add_parser("detect", help="run a detector on images; one JSON line per image")
     det.add_argument("images", nargs="+")
-    det.add_argument("--detector", required=True, help="falanga | aruco | apriltag | nfold | sdu | red")
+    det.add_argument("--detector", required=True, help="an image detector block (`alight blocks` lists them)")
     det.add_argument("--camera", default=None, help="camera calibration (OpenCV YAML) for the pose")
     det.set_defaults(func=_cmd_detect)
 

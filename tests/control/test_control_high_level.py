@@ -9,7 +9,7 @@ import pytest
 
 from alight.airframe import Airframe
 from alight.control import (
-    REGISTRY,
+    CONTROLLERS,
     Controller,
     HighLevelController,
     HighLevelGains,
@@ -242,9 +242,9 @@ def test_bad_rate_gains_and_airframe_mismatch_raise() -> None:
         pack_high_level_params(AF, HighLevelGains(min_vertical_accel=19.0))
 
 
-@pytest.mark.parametrize("name", sorted(REGISTRY))
+@pytest.mark.parametrize("name", sorted(CONTROLLERS))
 def test_registry_contract(name: str) -> None:
-    ctl = REGISTRY[name](AF)
+    ctl = CONTROLLERS[name].build_default(AF)
     assert isinstance(ctl, Controller)
     rng = np.random.default_rng(7)
     for k in range(20):

@@ -10,26 +10,38 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "alight"
 
-_MODELS = {"types", "errors", "airframe", "airframes", "cameras", "pads", "rotation_kernels", "numerics"}
+_MODELS = {
+    "types",
+    "errors",
+    "airframe",
+    "airframes",
+    "cameras",
+    "pads",
+    "rotation_kernels",
+    "numerics",
+    "blockspec",
+}
 _STAGES = {"perception", "estimation", "planning", "control", "mission", "energy"}
 
 ALLOWED: dict[str, set[str]] = {
     "types": set(),
     "errors": set(),
+    # what a block is (the stages' registries' entry type): a leaf below every stage
+    "blockspec": set(),
     "rotation_kernels": {"types"},
     "airframe": {"types", "errors"},
     # the packaged airframe files and their loader
     "airframes": {"types", "errors", "airframe"},
     # shared numerics (polynomial roots, DLT/RANSAC, run labelling): a leaf below every stage
     "numerics": {"types", "errors"},
-    "cameras": {"types", "errors", "numerics"},
-    "pads": {"types", "errors"},
+    "cameras": {"types", "errors", "numerics", "blockspec"},
+    "pads": {"types", "errors", "blockspec"},
     # a leaf: the energy and QoS models and policies, no pipeline stage, no simulator
     "energy": {"types", "errors"},
-    "perception": {"types", "errors", "cameras", "pads", "energy", "numerics"},
-    "estimation": {"types", "errors", "cameras", "rotation_kernels", "numerics"},
-    "planning": {"types", "errors", "airframe", "numerics"},
-    "control": {"types", "errors", "airframe", "rotation_kernels"},
+    "perception": {"types", "errors", "cameras", "pads", "energy", "numerics", "blockspec"},
+    "estimation": {"types", "errors", "cameras", "rotation_kernels", "numerics", "blockspec"},
+    "planning": {"types", "errors", "airframe", "numerics", "blockspec"},
+    "control": {"types", "errors", "airframe", "rotation_kernels", "blockspec"},
     "mission": _MODELS | {"perception", "estimation", "planning", "control", "energy"},
     # the fault models take their scenario sections (for annotations only: no runtime import)
     "sim": {"types", "errors", "airframe", "cameras", "pads", "rotation_kernels", "scenario"},

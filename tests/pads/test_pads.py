@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from alight.pads import APRILTAG_DICTIONARY, REGISTRY, AprilTagPad, FalangaTag, PadDesign
+from alight.blockspec import NoContext
+from alight.pads import APRILTAG_DICTIONARY, PADS, AprilTagPad, FalangaTag, PadDesign
 
 
 def _to_px(H: np.ndarray, pts_P: np.ndarray) -> np.ndarray:
@@ -29,10 +30,10 @@ def _signed_area(xy: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-@pytest.mark.parametrize("name", sorted(REGISTRY))
+@pytest.mark.parametrize("name", sorted(PADS))
 @pytest.mark.parametrize("px_per_m", [37.3, 100.0, 211.7])
 def test_registry_contract(name: str, px_per_m: float) -> None:
-    pad = REGISTRY[name]()
+    pad = PADS[name].build_default(NoContext())
     assert isinstance(pad, PadDesign)
     tex = pad.texture(px_per_m)
     n = round(pad.size_m * px_per_m)

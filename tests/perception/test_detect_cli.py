@@ -14,7 +14,7 @@ from perception_scenes import random_scenes
 from alight.cameras import PinholeCamera
 from alight.errors import ConfigError, InputError
 from alight.pads import FalangaTag
-from alight.perception.detect_cli import DETECTORS, run_detect
+from alight.perception.detect_cli import detector_names, run_detect
 
 
 def run(paths: list[str], detector: str, camera: str | None = None) -> tuple[int, list[dict]]:  # type: ignore[type-arg]
@@ -105,4 +105,4 @@ def test_unknown_detector_and_bad_camera_raise_before_any_image(tmp_path: Path) 
         run_detect(["x.png"], "nope", None, io.StringIO())
     with pytest.raises(InputError):
         run_detect(["x.png"], "falanga", str(tmp_path / "missing.yaml"), io.StringIO())
-    assert set(DETECTORS) == {"falanga", "aruco", "apriltag", "nfold", "sdu", "red"}
+    assert set(detector_names()) == {"falanga", "aruco", "apriltag", "nfold", "sdu", "red"}

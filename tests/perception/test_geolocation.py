@@ -10,7 +10,7 @@ import pytest
 from perception_scenes import tilt
 from scipy.stats import chi2
 
-from alight.cameras import CameraMount, PinholeCamera, camera_pose_W
+from alight.cameras import CameraMount, MountedCamera, PinholeCamera, camera_pose_W
 from alight.pads import AprilTagPad, FalangaTag
 from alight.perception import GEOLOCATORS, Geolocator
 from alight.perception.aruco import ArucoPadDetector, merge_observations
@@ -170,8 +170,8 @@ def test_bad_inputs() -> None:
 
 
 def test_registry_geolocators_satisfy_the_protocol() -> None:
-    assert isinstance(GEOLOCATORS["pnp"](CAM, MOUNT), Geolocator)
-    assert isinstance(GEOLOCATORS["direct"](MOUNT), Geolocator)
+    for spec in GEOLOCATORS.values():
+        assert isinstance(spec.build_default(MountedCamera(camera=CAM, mount=MOUNT)), Geolocator), spec.name
 
 
 def test_wrap_yaw() -> None:

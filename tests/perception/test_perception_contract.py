@@ -1,4 +1,5 @@
-"""The Detector contract, run over every registered detector (STYLE: one contract test per registry)."""
+"""The Detector contract, run over every registered image detector (``alight.perception.DETECTORS``;
+STYLE: one contract test per registry)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import pytest
 from perception_scenes import random_scenes
 
 from alight.pads import AprilTagPad, FalangaTag
-from alight.perception import REGISTRY, Detector
+from alight.perception import Detector
+from alight.perception.detect_cli import detector_names, make_detector
 
 BLANKS = [
     np.zeros((480, 752), np.uint8),
@@ -18,9 +20,10 @@ BLANKS = [
 ]
 
 
-@pytest.fixture(scope="module", params=sorted(REGISTRY))
+@pytest.fixture(scope="module", params=sorted(detector_names()))
 def detector(request: pytest.FixtureRequest) -> Detector:
-    return REGISTRY[request.param]()
+    """Every image detector of the registry, at its block defaults on its pad's default layout."""
+    return make_detector(request.param)
 
 
 def test_satisfies_the_protocol(detector: Detector) -> None:

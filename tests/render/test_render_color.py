@@ -10,8 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
+from alight.blockspec import NoContext
 from alight.cameras import CameraMount, PinholeCamera, camera_pose_W
-from alight.pads import REGISTRY, AprilTagPad, FalangaTag, PadDesign, RedTarget
+from alight.pads import PADS, AprilTagPad, FalangaTag, PadDesign, RedTarget
 from alight.sim import render
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.textures import (
@@ -385,7 +386,8 @@ def test_red_target_texture_matches_its_geometry() -> None:
         assert np.allclose(cen, 0.0, atol=1e-12)
         assert _polygon_area_centroid(out[:, :2])[0] > 0
         assert area == pytest.approx(t.target_area_m2, rel=0.01 if t.shape == "disc" else 1e-12)
-    assert REGISTRY["red"]() == RedTarget.default(1.5) and RedTarget.default(3.0).target_radius_m == 1.0
+    assert PADS["red_target"].build_default(NoContext()) == RedTarget.default(1.5)
+    assert RedTarget.default(3.0).target_radius_m == 1.0
     # the default red passes paper 003's filter, the grey background does not
     tex = RedTarget().texture(20.0)
     mask = _paper003_color_filter(tex)

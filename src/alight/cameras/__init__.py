@@ -4,6 +4,7 @@ Camera frame ``C`` is OpenCV's (x right, y down, z along the optical axis); pixe
 values at pixel centres. Every model satisfies :class:`CameraModel`; :func:`load_camera` reads a
 calibration file and picks the model from the file type: OpenCV ``FileStorage`` YAML/XML/JSON for
 :class:`PinholeCamera`, OCamCalib ``calib_results.txt`` for :class:`OmniCamera`.
+:data:`CAMERAS` is the camera stage's registry (``cameras/registry.py``).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Protocol, runtime_checkable
 
 from alight.cameras.omni import OmniCamera, solve_rho
 from alight.cameras.pinhole import CameraMount, PinholeCamera, camera_pose_W
+from alight.cameras.registry import CAMERAS, CameraLoad, CameraSpec, MountedCamera
 from alight.errors import InputError
 from alight.types import FloatArray
 
@@ -65,7 +67,11 @@ def load_camera(path: str | os.PathLike[str]) -> CameraModel:
 
 
 __all__ = [
+    "CAMERAS",
     "LOADERS",
+    "CameraLoad",
+    "CameraSpec",
+    "MountedCamera",
     "CameraModel",
     "CameraMount",
     "OmniCamera",

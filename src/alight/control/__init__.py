@@ -1,17 +1,16 @@
 """Control: reference -> collective thrust + body rates (high level) -> torques (rate loop) -> rotor
 thrusts (mixer). See ``README.md`` in this folder.
 
-``REGISTRY`` maps a high-level controller's name to a factory ``(airframe, **options) -> Controller``;
-a preset picks one by name. The low level (``low_level``) is a numba kernel on arrays that the simulator
-calls inside its physics loop.
+:data:`CONTROLLERS` (``control/registry.py``) is the controller stage's registry: name ->
+:class:`alight.blockspec.BlockSpec` (parameters, factory from them and the airframe).
+The low level (``low_level``) is a numba kernel on arrays that the simulator calls inside its physics
+loop.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
-from alight.airframe import Airframe
 from alight.control.high_level import (
     HighLevelController,
     HighLevelGains,
@@ -20,7 +19,7 @@ from alight.control.high_level import (
     high_level_kernel,
     pack_high_level_params,
 )
-from alight.control.l1_adaptive import L1AugmentedController, L1Config, faessler2017_l1
+from alight.control.l1_adaptive import L1AugmentedController, L1Config
 from alight.control.mixer import PriorityMixer, low_level, mix
 from alight.control.rate import (
     BodyRateController,
@@ -29,6 +28,7 @@ from alight.control.rate import (
     rate_torque,
     tilt_time_constant_s,
 )
+from alight.control.registry import CONTROLLERS, ControllerParams, ControllerSpec
 from alight.types import Command, EgoState, FloatArray, Reference
 
 
@@ -67,22 +67,12 @@ class Mixer(Protocol):
     def mix(self, thrust_N: float, torque_B: FloatArray) -> FloatArray: ...
 
 
-def _faessler2017(airframe: Airframe, **options: Any) -> Controller:
-    options.setdefault("tau_tilt", tilt_time_constant_s(airframe))
-    return HighLevelController(airframe, HighLevelGains(**options))
-
-
-REGISTRY: dict[str, Callable[..., Controller]] = {
-    "faessler2017": _faessler2017,
-    "faessler2017_l1": faessler2017_l1,
-}
-"""High-level controllers by name: ``REGISTRY[name](airframe, **gain_overrides)``; ``faessler2017_l1`` adds
-the L1 adaptive augmentation of paper 003 (options named like :class:`L1Config` fields go to it)."""
-
 __all__ = [
-    "REGISTRY",
+    "CONTROLLERS",
     "BodyRateController",
     "Controller",
+    "ControllerParams",
+    "ControllerSpec",
     "HighLevelController",
     "HighLevelGains",
     "L1AugmentedController",
@@ -99,4 +89,5 @@ __all__ = [
     "pack_high_level_params",
     "pack_low_level_params",
     "rate_torque",
+    "tilt_time_constant_s",
 ]

@@ -3,22 +3,23 @@
 Two stages, one Protocol each:
 
 - :class:`EgoEstimator` fuses IMU samples and odometry into an :class:`alight.types.EgoState`
-  (``EGO_REGISTRY``);
+  (:class:`EgoEkf`, the one the flight uses);
 - :class:`PlatformEstimator` turns :class:`alight.types.PlatformMeasurement` s into a
-  :class:`alight.types.PlatformEstimate` and predictions ahead (``REGISTRY``).
+  :class:`alight.types.PlatformEstimate` and predictions ahead.
 
-A registry maps a configuration name to a factory taking the block's keyword parameters, e.g.
-``REGISTRY["ekf_unicycle"](use_turn_rate=True)``. See ``README.md`` in this folder.
+:data:`PLATFORM_ESTIMATORS` (``estimation/registry.py``) is the platform-estimator stage's registry:
+name -> :class:`alight.blockspec.BlockSpec` (parameters, needs/provides, factory). See ``README.md`` in
+this folder.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
 from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
+from alight.estimation.registry import PLATFORM_ESTIMATORS, PlatformEstimatorSpec
 from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
 from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
 
@@ -141,44 +142,9 @@ class PositionResetting(Protocol):
     ) -> None: ...
 
 
-def _platform_ekf(**params: Any) -> PlatformEkf:
-    return PlatformEkf(PlatformEkfConfig(**params))
-
-
-def _platform_ekf_ctrv(**params: Any) -> PlatformEkf:
-    params.setdefault("use_turn_rate", True)
-    params.setdefault("heading_noise", 0.05)
-    return PlatformEkf(PlatformEkfConfig(**params))
-
-
-def _sdu_kf(**params: Any) -> SduKalmanFilter:
-    return SduKalmanFilter(SduKfConfig(**params))
-
-
-def _ukf_kim(camera: Any = None, mount: Any = None, **params: Any) -> KimUkf:
-    return KimUkf(KimUkfConfig(**params), camera=camera, mount=mount)
-
-
-def _ego_ekf(**params: Any) -> EgoEkf:
-    return EgoEkf(EgoEkfConfig(**params))
-
-
-REGISTRY: dict[str, Callable[..., PlatformEstimator]] = {
-    "ekf_unicycle": _platform_ekf,
-    "ekf_unicycle_turn": _platform_ekf_ctrv,
-    "sdu_kf": _sdu_kf,
-    "ukf_kim": _ukf_kim,
-}
-"""Platform estimators by name; each factory takes the estimator's config fields as keywords."""
-
-EGO_REGISTRY: dict[str, Callable[..., EgoEstimator]] = {
-    "eskf": _ego_ekf,
-}
-"""Ego estimators by name; each factory takes the estimator's config fields as keywords."""
-
 __all__ = [
-    "EGO_REGISTRY",
-    "REGISTRY",
+    "PLATFORM_ESTIMATORS",
+    "PlatformEstimatorSpec",
     "EgoEkf",
     "EgoFed",
     "PixelMeasured",

@@ -1,20 +1,23 @@
 """Blocks by name: the registry a scenario's ``blocks:`` section and the presets choose from.
 
-Seven stages, each a name from its table in :data:`BLOCKS`:
+Seven stages, each a name from its stage's table (:class:`alight.blockspec.BlockSpec` entries):
 
-    camera, pad, detector, geolocator, platform_estimator, controller, planner
+    camera              alight.cameras.CAMERAS
+    pad                 alight.pads.PADS
+    detector            alight.perception.DETECTORS
+    geolocator          alight.perception.GEOLOCATORS
+    platform_estimator  alight.estimation.PLATFORM_ESTIMATORS
+    controller          alight.control.CONTROLLERS
+    planner             alight.planning.PLANNERS
 
-Each :class:`BlockSpec` carries, as data:
-
-- ``params``: a frozen dataclass whose fields are the block's parameters with their defaults (the
-  algorithm's own config class where it has one, e.g. ``PlatformEkfConfig``), plus ``defaults``: the
-  values missions fly where they differ from the algorithm class's library defaults (one place, here;
-  the scenario holds only overrides, ``None`` meaning "the block's default");
-- ``context``: parameters filled from the scenario when not given (the pad's size, the deck height, ...);
-- ``needs`` / ``provides``: what the block requires of the other stages' choices and what it offers them.
-  ``needs`` maps ``"<stage>"`` to the block names it works with, or ``"<stage>.<feature>"`` to the
-  values of that feature (in the chosen block's ``provides``) it accepts. One function,
-  :func:`check_compatibility`, reads them; nothing else decides what goes with what.
+:data:`BLOCKS` is those tables by stage (the same dicts, not copies): the flight
+(:func:`alight.mission.presets.build_preset` calls each chosen spec's ``build``), ``alight blocks``,
+``alight detect``, the docs generator and the contract tests read them, and :func:`register_block` adds a
+block from outside the package. Each spec declares its parameters, the values it takes from the scenario,
+what it needs of the other stages' choices and what it provides (``needs`` maps ``"<stage>"`` to the
+block names it works with, or ``"<stage>.<feature>"`` to the values of that feature in the chosen block's
+``provides``). One function, :func:`check_compatibility`, reads them; nothing else decides what goes with
+what.
 
 A preset (``mission/preset_data/<name>.yaml``) is a named set of choices with parameters; a scenario's
 ``blocks:`` entries override its preset's. :func:`resolve_blocks` gives the effective choices (preset +
@@ -26,8 +29,7 @@ This module builds configs only; the objects that fly are made in :mod:`alight.m
 from __future__ import annotations
 
 import dataclasses
-import inspect
-import math
+import enum
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cache
@@ -36,459 +38,56 @@ from typing import Any
 
 import yaml
 
-from alight.estimation.kim_ukf import KimUkfConfig
-from alight.estimation.platform_ekf import PlatformEkfConfig
-from alight.estimation.sdu_kf import SduKfConfig
-from alight.perception.color_filter import RedTargetDetectorConfig
-from alight.perception.falanga_tag import FalangaDetectorConfig
-from alight.perception.flat_earth import FlatEarthGeolocator
-from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
-from alight.perception.homography_geolocation import HomographyGeolocator
-from alight.perception.nfold import NFoldConfig
+from alight.blockspec import BlockSpec, ResolveContext
+from alight.cameras import CAMERAS, CameraLoad, CameraModel, MountedCamera
+from alight.cameras.pinhole import CameraMount
+from alight.control import CONTROLLERS
+from alight.estimation import PLATFORM_ESTIMATORS
+from alight.pads import PADS
+from alight.perception import DETECTORS, GEOLOCATORS
+from alight.planning import PLANNERS
 
 STAGES = ("camera", "pad", "detector", "geolocator", "platform_estimator", "controller", "planner")
 """The stages a ``blocks:`` section names, in data-flow order."""
 
-
-# -- parameters of the blocks that have no config class of their own -------------------------------------
-
-
-@dataclass(frozen=True, kw_only=True)
-class PinholeParams:
-    """The downward pinhole camera."""
-
-    calibration: str | None = None
-    """OpenCV calibration YAML/XML/JSON or ROS ``camera_info`` YAML (``plumb_bob`` or
-    ``rational_polynomial``); None: paper 000's mvBlueFOX 752x480 with a 2.4 mm lens."""
-
-
-@dataclass(frozen=True, kw_only=True)
-class FisheyeParams:
-    """The downward omnidirectional camera (Scaramuzza model)."""
-
-    calibration: str | None = None
-    """OCamCalib ``calib_results.txt``; None: a synthetic lens with the values below."""
-    width: int = 640
-    """Image width of the synthetic lens (px)."""
-    height: int = 480
-    """Image height of the synthetic lens (px); the field of view's circle is inscribed."""
-    fov_deg: float = 186.0
-    """Field of view of the synthetic lens (deg); paper 003 flies a 186 deg fisheye."""
-
-    def __post_init__(self) -> None:
-        if self.width < 16 or self.height < 16:
-            raise ValueError(f"width and height must be >= 16 px, got {self.width} x {self.height}")
-        if not (math.isfinite(self.fov_deg) and 60.0 <= self.fov_deg <= 240.0):
-            raise ValueError(f"fov_deg must be in [60, 240], got {self.fov_deg}")
-
-
-@dataclass(frozen=True, kw_only=True)
-class PadParams:
-    """A landing-pad design drawn on the platform."""
-
-    size_m: float | None = None
-    """Side of the pad (m); None: the scenario's ``platform.pad_size_m``."""
-
-    def __post_init__(self) -> None:
-        if self.size_m is not None and not (math.isfinite(self.size_m) and self.size_m > 0):
-            raise ValueError(f"size_m must be finite and > 0, got {self.size_m}")
-
-
-@dataclass(frozen=True, kw_only=True)
-class ArucoParams:
-    """OpenCV's ArUco detector on AprilTag 36h11 markers."""
-
-    full_quality_side_px: float = 20.0
-    """Marker side (px) from which an observation gets quality 1."""
-    subpixel_corners: bool = True
-    """Refine the corners to sub-pixel: halves the PnP error on rendered frames."""
-
-    def __post_init__(self) -> None:
-        if not self.full_quality_side_px > 0:
-            raise ValueError(f"full_quality_side_px must be > 0, got {self.full_quality_side_px}")
-
-
-@dataclass(frozen=True, kw_only=True)
-class SduParams:
-    """Paper 004's landing marker: the n-fold marker and three ArUco landmarks."""
-
-    nfold_sigma_px: float = 0.3
-    """Standard deviation of the n-fold centre (px)."""
-    aruco_corner_sigma_px: float = 0.25
-    """Standard deviation of an ArUco corner (px)."""
-    gate_frac: float = 0.1
-    gate_min_px: float = 3.0
-    full_quality_side_px: float = 20.0
-    qos: bool = False
-    """Run the detector at the quality-of-service settings of the scenario's ``energy:`` section and count
-    its compute energy (paper 004's Jetson Nano)."""
-
-    def __post_init__(self) -> None:
-        for name in ("nfold_sigma_px", "aruco_corner_sigma_px", "gate_frac", "gate_min_px"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {v}")
-
-
-@dataclass(frozen=True, kw_only=True)
-class GroundTruthParams:
-    """The ground-truth perception sensor (its rate, noise, latency and field of view are the scenario's
-    ``perception:`` section)."""
-
-
-@dataclass(frozen=True, kw_only=True)
-class ControllerParams:
-    """Paper 000's high-level controller (Faessler et al.), critically damped position loop."""
-
-    position_bandwidth_rad_s: float = 3.0
-    """Natural frequency of the position loop, critically damped (rad/s)."""
-    integral_gain: float = 0.0
-    """Integral gain on the position error per axis (1/s^3), as an autopilot's position loop has. Must be
-    below kp * kv = 2 * bandwidth^3."""
-    integral_limit_mps2: float = 6.0
-    """Largest acceleration the integral may command per axis (m/s^2)."""
-
-    def __post_init__(self) -> None:
-        bw, ki = self.position_bandwidth_rad_s, self.integral_gain
-        if not (math.isfinite(bw) and bw > 0):
-            raise ValueError(f"position_bandwidth_rad_s must be finite and > 0, got {bw}")
-        if not (math.isfinite(self.integral_limit_mps2) and self.integral_limit_mps2 > 0):
-            raise ValueError(f"integral_limit_mps2 must be finite and > 0, got {self.integral_limit_mps2}")
-        # Routh-Hurwitz of s^3 + kv s^2 + kp s + ki with kp = bw^2, kv = 2 bw (the controller's own check)
-        if not (math.isfinite(ki) and 0.0 <= ki < 2.0 * bw**3):
-            raise ValueError(
-                f"integral_gain must satisfy 0 <= integral_gain < 2 * position_bandwidth_rad_s^3 = "
-                f"{2.0 * bw**3:.3g} (a stable loop), got {ki}"
-            )
-
-
-@dataclass(frozen=True, kw_only=True)
-class PlannerParams:
-    """Paper 000's planner: minimum-jerk candidates to predicted platform states, the cheapest feasible."""
-
-    n_candidates: int = 20
-    horizon_min_s: float = 1.0
-    horizon_max_s: float = 3.0
-    rate_hz: float = 50.0
-    """Replanning rate (Hz); the mission logic runs at the same rate."""
-    adopt_threshold_m: float = 0.2
-    end_acceleration: str = "platform"
-    """Final acceleration of each candidate: ``free`` as in paper 000, or ``platform``, the platform's
-    predicted acceleration (removes the lag of free-end plans behind a platform on a curve)."""
-
-    def __post_init__(self) -> None:
-        if not 1 <= self.n_candidates <= 10000:
-            raise ValueError(f"n_candidates must be in [1, 10000], got {self.n_candidates}")
-        for name in ("horizon_min_s", "horizon_max_s", "rate_hz"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {v}")
-        if self.horizon_max_s < self.horizon_min_s:
-            raise ValueError("horizon_max_s must be >= horizon_min_s")
-        if not (math.isfinite(self.adopt_threshold_m) and self.adopt_threshold_m >= 0):
-            raise ValueError(f"adopt_threshold_m must be finite and >= 0, got {self.adopt_threshold_m}")
-        if self.end_acceleration not in ("free", "platform"):
-            raise ValueError(f"end_acceleration must be 'free' or 'platform', got {self.end_acceleration!r}")
-
-
-def _signature_params(cls: type, skip: tuple[str, ...], doc: str) -> type:
-    """A frozen dataclass of a constructor's keyword parameters (after ``skip``), with its defaults: the
-    block's parameters are its constructor's, listed once."""
-    fields_: list[tuple[str, Any, Any]] = []
-    for p in inspect.signature(cls).parameters.values():
-        if p.name in skip or p.name == "self" or p.default is inspect.Parameter.empty:
-            continue
-        fields_.append((p.name, Any, field(default=p.default)))
-    made = dataclasses.make_dataclass(f"{cls.__name__}Params", fields_, frozen=True, kw_only=True)
-    made.__doc__ = doc
-    return made
-
-
-PnpParams = _signature_params(
-    PnpGeolocator, ("camera", "mount"), "PnP on the observation's pad points, then the ego pose at capture."
-)
-FlatEarthParams = _signature_params(
-    FlatEarthGeolocator, ("camera", "mount"), "The pixel's ray intersected with the deck's plane (paper 003)."
-)
-HomographyParams = _signature_params(
-    HomographyGeolocator,
-    ("camera", "mount", "landmark_offsets", "fov_rad"),
-    "Pixel to ground through the homography of the camera's view at the altitude (paper 004).",
-)
-DirectParams = _signature_params(
-    DirectGeolocator, ("mount",), "Observations that carry the pad's position in C already (ground truth)."
-)
-
-
-# -- the registry ----------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class BlockSpec:
-    """One block as the registry declares it (module docstring)."""
-
-    stage: str
-    name: str
-    summary: str
-    params: type
-    """Frozen dataclass of the parameters; its field defaults are the library defaults."""
-    defaults: Mapping[str, Any] = field(default_factory=dict)
-    """Defaults that missions fly where they differ from ``params``' own (the block's defaults)."""
-    context: Mapping[str, str] = field(default_factory=dict)
-    """Parameter -> where its value comes from when not given (a scenario key or another block)."""
-    needs: Mapping[str, tuple[Any, ...]] = field(default_factory=dict)
-    provides: Mapping[str, Any] = field(default_factory=dict)
-    hidden: tuple[str, ...] = ()
-    """Fields of ``params`` that are not block parameters (objects the builder passes)."""
-
-    def parameters(self) -> list[tuple[str, Any, str]]:
-        """(name, default, docstring) of every parameter, the block's defaults applied."""
-        docs = _field_docs(self.params)
-        out = []
-        for f in dataclasses.fields(self.params):
-            if f.name in self.hidden or not f.init:
-                continue
-            if f.name in self.defaults:
-                default: Any = self.defaults[f.name]
-            elif f.default is not dataclasses.MISSING:
-                default = f.default
-            elif f.default_factory is not dataclasses.MISSING:
-                default = f.default_factory()
-            else:
-                default = None
-            out.append((f.name, default, docs.get(f.name, "")))
-        return out
-
-
-@cache  # reading and parsing the source costs ~50 ms a class; the scenario validation asks often
-def _field_docs(cls: type) -> dict[str, str]:
-    """The docstrings under a dataclass's fields (the attribute-docstring convention of this codebase)."""
-    import ast
-    import textwrap
-
-    try:
-        src = textwrap.dedent(inspect.getsource(cls))
-    except (OSError, TypeError):
-        return {}
-    tree = ast.parse(src)
-    out: dict[str, str] = {}
-    body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
-    for a, b in zip(body, body[1:], strict=False):
-        if (
-            isinstance(a, ast.AnnAssign)
-            and isinstance(a.target, ast.Name)
-            and isinstance(b, ast.Expr)
-            and isinstance(b.value, ast.Constant)
-            and isinstance(b.value.value, str)
-        ):
-            out[a.target.id] = " ".join(b.value.value.split())
-    return out
-
-
-_PAD_SIZE = {"size_m": "platform.pad_size_m"}
-MANEUVER_ACCEL_NOISE = 2.0
-"""The unicycle EKF's process noise while the platform brakes or accelerates (m/s^2/sqrt(Hz)): a road
-vehicle brakes at up to 8 m/s^2 and accelerates at up to 4 (``platform.speed_profile``'s limits); with the
-fixed 0.1 the speed estimate lagged a 6 m/s^2 stop by a second and the vehicle landed beside the pad."""
-
-BLOCKS: dict[str, dict[str, BlockSpec]] = {
-    "camera": {
-        "pinhole": BlockSpec(
-            "camera",
-            "pinhole",
-            "pinhole camera with radial-tangential distortion (OpenCV); 752x480 by default",
-            PinholeParams,
-            context={"calibration": "camera.calibration"},
-            provides={"model": "pinhole"},
-        ),
-        "fisheye": BlockSpec(
-            "camera",
-            "fisheye",
-            "omnidirectional camera, Scaramuzza's model (OCamCalib); a 186 deg 640x480 lens by default",
-            FisheyeParams,
-            context={"calibration": "camera.calibration"},
-            provides={"model": "omni"},
-        ),
-    },
-    "pad": {
-        "falanga_tag": BlockSpec(
-            "pad",
-            "falanga_tag",
-            "paper 000's cross in a ring",
-            PadParams,
-            context=_PAD_SIZE,
-            provides={"yaw_fold": 4},
-        ),
-        "apriltag": BlockSpec(
-            "pad", "apriltag", "AprilTag 36h11 markers in a known layout", PadParams, context=_PAD_SIZE
-        ),
-        "sdu_marker": BlockSpec(
-            "pad",
-            "sdu_marker",
-            "paper 004's n-fold marker and three ArUco landmarks",
-            PadParams,
-            context=_PAD_SIZE,
-        ),
-        "red_target": BlockSpec(
-            "pad", "red_target", "paper 003's red disc (a colour target)", PadParams, context=_PAD_SIZE
-        ),
-    },
-    "detector": {
-        "falanga": BlockSpec(
-            "detector",
-            "falanga",
-            "paper 000's tag detector (Alg. 1): the ring's ellipse and the cross's corners",
-            FalangaDetectorConfig,
-            needs={"pad": ("falanga_tag",)},
-            provides={"observation": ("pad_points", "pixel"), "image": True},
-        ),
-        "aruco": BlockSpec(
-            "detector",
-            "aruco",
-            "the AprilTag pad's markers via OpenCV's ArUco module, merged into one observation",
-            ArucoParams,
-            needs={"pad": ("apriltag",)},
-            provides={"observation": ("pad_points", "pixel"), "image": True},
-        ),
-        "apriltag": BlockSpec(
-            "detector",
-            "apriltag",
-            "every AprilTag 36h11 marker, no pad layout (each marker's own corners)",
-            ArucoParams,
-            defaults={"subpixel_corners": False},
-            needs={"pad": ("apriltag",)},
-            provides={"observation": ("pixel",), "image": True},
-        ),
-        "nfold": BlockSpec(
-            "detector",
-            "nfold",
-            "paper 004's n-fold marker alone (adaptive kernel size)",
-            NFoldConfig,
-            context={"order": "pad sdu_marker", "oriented": "pad sdu_marker"},
-            needs={"pad": ("sdu_marker",)},
-            provides={"observation": ("pixel",), "image": True},
-        ),
-        "sdu": BlockSpec(
-            "detector",
-            "sdu",
-            "paper 004's landing marker: the n-fold marker and three ArUco landmarks",
-            SduParams,
-            needs={"pad": ("sdu_marker",)},
-            provides={"observation": ("pixel",), "image": True},
-        ),
-        "red": BlockSpec(
-            "detector",
-            "red",
-            "paper 003's colour filter (Alg. 1-2): the biggest red contour",
-            RedTargetDetectorConfig,
-            context={"mitigation": "perception.mitigation"},
-            needs={"pad": ("red_target",), "camera.color": (True,)},
-            provides={"observation": ("pixel",), "image": True},
-        ),
-        "groundtruth": BlockSpec(
-            "detector",
-            "groundtruth",
-            "the simulator's ground-truth perception sensor (no image; the 'perfect perception' ablation)",
-            GroundTruthParams,
-            provides={"observation": ("relative_position",), "image": False},
-        ),
-    },
-    "geolocator": {
-        "pnp": BlockSpec(
-            "geolocator",
-            "pnp",
-            "PnP on the pad's points, with the ego pose at the capture time (paper 000)",
-            PnpParams,
-            needs={"camera.model": ("pinhole",), "detector.observation": ("pad_points",)},
-        ),
-        "flat_earth": BlockSpec(
-            "geolocator",
-            "flat_earth",
-            "the pixel's ray intersected with the deck's plane (paper 003, eq. 5-9)",
-            FlatEarthParams,
-            defaults={"deck_height_m": None},
-            context={"deck_height_m": "platform.pad_height_m"},
-            needs={"detector.observation": ("pixel",)},
-        ),
-        "homography": BlockSpec(
-            "geolocator",
-            "homography",
-            "pixel to ground by the homography of the camera's view at the altitude (paper 004, Sec. IV-A)",
-            HomographyParams,
-            defaults={"plane_z_W": None},
-            context={"plane_z_W": "platform.pad_height_m"},
-            needs={"camera.model": ("pinhole",), "detector.observation": ("pixel",)},
-        ),
-        "direct": BlockSpec(
-            "geolocator",
-            "direct",
-            "observations that carry the pad's position in C (the ground-truth sensor)",
-            DirectParams,
-            needs={"detector.observation": ("relative_position",)},
-        ),
-    },
-    "platform_estimator": {
-        "unicycle_ekf": BlockSpec(
-            "platform_estimator",
-            "unicycle_ekf",
-            "paper 000's unicycle EKF, with a turn-rate state (ours) unless use_turn_rate is false",
-            PlatformEkfConfig,
-            # What every mission has flown (the scenario's former defaults and the presets' choice).
-            defaults={
-                "use_turn_rate": True,
-                "accel_noise": 0.1,
-                "heading_noise": 0.1,
-                "turn_accel_noise": 0.1,
-                # Initialise from sightings up to 4 s apart: while searching, the platform is often seen
-                # in short bursts (a pass of the coverage pattern), and two bursts give its velocity well.
-                "init_max_span": 4.0,
-                "maneuver_accel_noise": MANEUVER_ACCEL_NOISE,
-            },
-        ),
-        "kim_ukf": BlockSpec(
-            "platform_estimator",
-            "kim_ukf",
-            "paper 003's UKF on the target's pixel through the camera model (eq. 10-27)",
-            KimUkfConfig,
-            context={
-                "deck_height": "platform.pad_height_m",
-                "confirm_updates": "perception.mitigation (0 for none, else 5)",
-                "measurement_model": "camera (quartic for fisheye, the model's project otherwise)",
-            },
-            defaults={"deck_height": None, "confirm_updates": None, "measurement_model": None},
-            needs={"detector.image": (True,)},
-        ),
-        "sdu_kf": BlockSpec(
-            "platform_estimator",
-            "sdu_kf",
-            "paper 004's Kalman filter on the relative position, delay compensated, with the velocity "
-            "estimator",
-            SduKfConfig,
-            context={"velocity": "pad (n-fold order as the yaw fold, measured yaw increments)"},
-            defaults={"velocity": None},
-        ),
-    },
-    "controller": {
-        "faessler": BlockSpec(
-            "controller", "faessler", "paper 000's high-level controller (Faessler et al.)", ControllerParams
-        ),
-        "faessler_l1": BlockSpec(
-            "controller",
-            "faessler_l1",
-            "the Faessler controller with paper 003's L1 adaptive augmentation of the outer loop",
-            ControllerParams,
-        ),
-    },
-    "planner": {
-        "min_jerk_candidates": BlockSpec(
-            "planner",
-            "min_jerk_candidates",
-            "paper 000's minimum-jerk candidates to predicted platform states (Sec. II-D)",
-            PlannerParams,
-        ),
-    },
+BLOCKS: dict[str, dict[str, BlockSpec[Any, Any]]] = {
+    "camera": CAMERAS,
+    "pad": PADS,
+    "detector": DETECTORS,
+    "geolocator": GEOLOCATORS,
+    "platform_estimator": PLATFORM_ESTIMATORS,
+    "controller": CONTROLLERS,
+    "planner": PLANNERS,
 }
-"""Every block by stage and name."""
+"""Every block by stage and name: each stage's own table."""
+
+
+def register_block(spec: BlockSpec[Any, Any]) -> None:
+    """Add ``spec`` to its stage's table, so a scenario's ``blocks.<stage>: <name>`` flies it. Raises
+    ``ValueError`` (one line) for an unknown stage or a name the stage has already."""
+    table = BLOCKS.get(spec.stage)
+    if table is None:
+        raise ValueError(f"register_block: unknown stage '{spec.stage}', expected one of {list(STAGES)}")
+    if spec.name in table:
+        raise ValueError(f"register_block: {spec.stage} '{spec.name}' is registered already")
+    table[spec.name] = spec
+
+
+def unregister_block(stage: str, name: str) -> None:
+    """Remove a block :func:`register_block` added (a test's clean-up); unknown ones are ignored."""
+    BLOCKS.get(stage, {}).pop(name, None)
+
+
+def block_spec(stage: str, name: str, where: str | None = None) -> BlockSpec[Any, Any]:
+    """The spec of ``name`` in ``stage``'s table; an unknown one is refused with a ``ValueError`` of one
+    line naming ``where`` (default ``blocks.<stage>``) and the known names."""
+    table = BLOCKS[stage]
+    if name not in table:
+        raise ValueError(
+            f"{where or f'blocks.{stage}'}: unknown {stage} '{name}', expected one of {list(table)}"
+        )
+    return table[name]
+
 
 # Scenario sections whose keys are parameters of one stage's block (the sections predate ``blocks:``;
 # they stay as its shorthand). ``controller.l1_adaptive`` picks the controller instead (below).
@@ -528,10 +127,8 @@ class Block:
     """An instance of the block's ``params`` dataclass."""
     given: Mapping[str, Any]
     """The parameters set by the preset or the scenario (the rest are defaults or context)."""
-
-    @property
-    def spec(self) -> BlockSpec:
-        return BLOCKS[self.stage][self.name]
+    spec: BlockSpec[Any, Any] = field(repr=False, compare=False)
+    """The block as its stage's table declares it."""
 
     def as_dict(self) -> dict[str, Any]:
         hidden = set(self.spec.hidden)
@@ -550,7 +147,7 @@ def _plain(v: Any) -> Any:
         return {f.name: _plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
     if isinstance(v, tuple | list):
         return [_plain(x) for x in v]
-    if hasattr(v, "value") and isinstance(getattr(v, "value", None), str | int):  # enums
+    if isinstance(v, enum.Enum) and isinstance(v.value, str | int):
         return v.value
     return v
 
@@ -569,64 +166,6 @@ def parse_entry(entry: Any, where: str) -> tuple[str | None, dict[str, Any]]:
     raise ValueError(f"{where}: expected a block name or {{name: ..., <parameters>}}, got {entry!r}")
 
 
-def _check_type(value: Any, default: Any, where: str) -> None:
-    """Reject a value of the wrong kind for a scalar parameter (a YAML typo: a string for a number)."""
-    if default is None or value is None:
-        return
-    if isinstance(default, bool):
-        ok = isinstance(value, bool)
-        kind = "true or false"
-    elif isinstance(default, int | float) and not isinstance(default, bool):
-        ok = isinstance(value, int | float) and not isinstance(value, bool)
-        if ok and isinstance(default, int) and not isinstance(value, int) and float(value).is_integer():
-            ok = True
-        kind = "a number"
-        if ok and not math.isfinite(float(value)):
-            raise ValueError(f"{where}: must be finite, got {value!r}")
-    elif isinstance(default, str):
-        ok, kind = isinstance(value, str), "a string"
-    else:
-        return
-    if not ok:
-        raise ValueError(f"{where}: expected {kind}, got {value!r}")
-
-
-def make_params(spec: BlockSpec, given: Mapping[str, Any], context: Mapping[str, Any], where: str) -> Any:
-    """The block's parameter dataclass from its defaults, the scenario's context and ``given``."""
-    known = {f.name: f for f in dataclasses.fields(spec.params) if f.init and f.name not in spec.hidden}
-    for key in given:
-        if key not in known:
-            raise ValueError(
-                f"{where}.{key}: unknown parameter of {spec.stage} '{spec.name}' (known: {', '.join(known)})"
-            )
-    defaults = {name: d for name, d, _ in spec.parameters()}
-    kw: dict[str, Any] = {k: v for k, v in spec.defaults.items() if k in known}
-    for k, v in context.items():
-        if k in known and kw.get(k) is None:
-            kw[k] = v
-    for key, value in given.items():
-        f = known[key]
-        sub = f.type if isinstance(f.type, type) else None
-        default = defaults.get(key)
-        if dataclasses.is_dataclass(default) and isinstance(value, Mapping):
-            try:
-                value = dataclasses.replace(default, **value)  # type: ignore[type-var]
-            except TypeError as err:
-                raise ValueError(f"{where}.{key}: {err}") from None
-            except ValueError as err:
-                raise ValueError(f"{where}.{key}: {err}") from None
-        elif sub is not None and dataclasses.is_dataclass(sub) and isinstance(value, Mapping):
-            value = sub(**value)
-        else:
-            _check_type(value, default, f"{where}.{key}")
-        kw[key] = value
-    kw = {k: v for k, v in kw.items() if not (v is None and k in spec.defaults and k not in given)}
-    try:
-        return spec.params(**kw)
-    except (ValueError, TypeError) as err:
-        raise ValueError(f"{where}: {spec.stage} '{spec.name}' rejects its parameters: {err}") from None
-
-
 @dataclass(frozen=True)
 class EffectiveBlocks:
     """The blocks a scenario flies, after its preset and its overrides."""
@@ -635,7 +174,7 @@ class EffectiveBlocks:
     blocks: Mapping[str, Block]
     mission: Mapping[str, Any]
     """The preset's mission defaults (``land_speed_mps``, ``coverage_fov_deg``)."""
-    camera_model: Any = None
+    camera_model: CameraModel | None = None
     """The loaded camera model (vision blocks), or None."""
     color: bool = False
     """Render colour images (a detector that needs colour, or the scenario's ``camera.color``)."""
@@ -647,77 +186,91 @@ class EffectiveBlocks:
         return {stage: self.blocks[stage].as_dict() for stage in STAGES}
 
 
-@cache
-def _synthetic_fisheye(width: int, height: int, fov_deg: float) -> Any:
-    """A synthetic lens for validation (~70 ms to fit; the flight builds its own)."""
-    from alight.cameras.omni import OmniCamera
+@dataclass
+class _Choices:
+    """The names and given parameters of a scenario's blocks, with the key each name comes from."""
 
-    return OmniCamera.synthetic(width, height, fov_deg=fov_deg)
+    names: dict[str, str]
+    preset_names: dict[str, str]
+    preset_given: dict[str, dict[str, Any]]
+    source: dict[str, str]
+    section_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Stage -> ``{"<section>.<key>": value}`` from the scenario's per-block sections."""
+    blocks_given: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Stage -> the parameters of the scenario's ``blocks.<stage>`` entry."""
 
 
-def _load_camera_model(name: str, params: Any, where: str, *, fresh: bool = True) -> Any:
-    from alight.cameras import load_camera
-    from alight.cameras.omni import OmniCamera
-    from alight.cameras.pinhole import PinholeCamera
-    from alight.errors import AlightError
+def _preset_choices(preset_name: str, preset: Mapping[str, Any]) -> _Choices:
+    pblocks = preset.get("blocks", {})
+    names: dict[str, str] = {}
+    given: dict[str, dict[str, Any]] = {}
+    for stage in STAGES:
+        name, params = parse_entry(pblocks[stage], f"preset {preset_name}: blocks.{stage}")
+        if name is None:
+            raise ValueError(f"preset {preset_name}: blocks.{stage}: no block name")
+        names[stage], given[stage] = name, params
+    source = {stage: f"blocks.{stage} (preset {preset_name})" for stage in STAGES}
+    return _Choices(names, dict(names), given, source)
 
-    if params.calibration is None:
-        if name == "pinhole":
-            return PinholeCamera.default_downward()
-        if not fresh:
-            return _synthetic_fisheye(params.width, params.height, params.fov_deg)
-        return OmniCamera.synthetic(params.width, params.height, fov_deg=params.fov_deg)
+
+def _scenario_choices(scenario: Any, ch: _Choices) -> None:
+    """The scenario's per-block sections (parameters of the stage's block, whichever block that is) and
+    its ``blocks:`` entries, over the preset's choices."""
+    for section, stage in SECTION_STAGE.items():
+        values = {k: v for k, v in getattr(scenario, section).model_dump().items() if v is not None}
+        if section == "controller" and "l1_adaptive" in values:
+            ch.names["controller"] = "faessler_l1" if values.pop("l1_adaptive") else "faessler"
+        ch.section_params[stage] = {f"{section}.{k}": v for k, v in values.items()}
+    for stage in STAGES:
+        entry = getattr(scenario.blocks, stage)
+        ch.blocks_given[stage] = {}
+        if entry is None:
+            continue
+        name, params = parse_entry(entry, f"blocks.{stage}")
+        if name is not None:
+            ch.names[stage] = name
+        ch.blocks_given[stage] = params
+        ch.source[stage] = f"blocks.{stage}"
+
+
+def _given_params(stage: str, spec: BlockSpec[Any, Any], ch: _Choices) -> tuple[dict[str, Any], str]:
+    """The parameters the preset and the scenario set for ``stage``'s block, and the key to name in an
+    error about them."""
+    name = spec.name
+    # the preset's parameters belong to the preset's block: another block starts from its defaults
+    params = dict(ch.preset_given[stage]) if name == ch.preset_names[stage] else {}
+    known = {p for p, _, _ in spec.parameters()}
+    for dotted, value in ch.section_params.get(stage, {}).items():
+        key = dotted.split(".", 1)[1]
+        if key not in known:
+            raise ValueError(
+                f"{dotted}: not a parameter of {stage} '{name}' ({ch.source[stage]}); "
+                f"its parameters: {', '.join(sorted(known))}"
+            )
+        params[key] = value
+    params.update(ch.blocks_given[stage])
+    where = ch.source[stage].split(" (preset")[0]
+    if ch.section_params.get(stage) and not ch.blocks_given[stage] and ch.source[stage] != f"blocks.{stage}":
+        where = next(iter(ch.section_params[stage])).split(".")[0]  # the section the user wrote
+    return params, where
+
+
+def _resolve_context(scenario: Any, chosen: Mapping[str, Block]) -> ResolveContext:
+    return ResolveContext(
+        pad_size_m=scenario.platform.pad_size_m,
+        pad_height_m=scenario.platform.pad_height_m,
+        mitigation=scenario.perception.mitigation,
+        calibration=scenario.camera.calibration,
+        upstream={stage: b.spec for stage, b in chosen.items()},
+    )
+
+
+def _load_camera(block: Block, where: str, fresh: bool) -> CameraModel:
     try:
-        cam = load_camera(params.calibration)
-    except AlightError as err:
-        raise ValueError(f"{where}.calibration: {err}") from None
-    want = PinholeCamera if name == "pinhole" else OmniCamera
-    if not isinstance(cam, want):
-        other = "fisheye" if name == "pinhole" else "pinhole"
-        raise ValueError(
-            f"{where}.calibration: {params.calibration} is a {type(cam).__name__} calibration, not a "
-            f"{name} one (use camera: {other})"
-        )
-    return cam
-
-
-def _context(stage: str, name: str, scenario: Any, chosen: Mapping[str, Block]) -> dict[str, Any]:
-    """Parameters a block takes from the scenario (or an upstream block) when not given."""
-    if stage == "camera":
-        return {"calibration": scenario.camera.calibration}
-    if stage == "pad":
-        return {"size_m": scenario.platform.pad_size_m}
-    if stage == "detector" and name == "red":
-        return {"mitigation": scenario.perception.mitigation}
-    if stage == "detector" and name == "nfold":
-        from alight.pads.sdu_pad import SduPad
-
-        pad = SduPad.default(scenario.platform.pad_size_m)
-        return {"order": pad.nfold_order, "oriented": pad.nfold_oriented}
-    if stage == "geolocator" and name == "flat_earth":
-        return {"deck_height_m": scenario.platform.pad_height_m}
-    if stage == "geolocator" and name == "homography":
-        return {"plane_z_W": scenario.platform.pad_height_m}
-    if stage == "platform_estimator" and name == "kim_ukf":
-        cam = chosen.get("camera")
-        return {
-            "deck_height": scenario.platform.pad_height_m,
-            "confirm_updates": 0 if scenario.perception.mitigation == "none" else 5,
-            "measurement_model": "quartic" if cam is not None and cam.name == "fisheye" else "camera",
-        }
-    if stage == "platform_estimator" and name == "sdu_kf":
-        from alight.estimation.platform_velocity import PlatformVelocityConfig
-
-        pad_block = chosen.get("pad")
-        fold = 1
-        if pad_block is not None and pad_block.name == "sdu_marker":
-            from alight.pads.sdu_pad import SduPad
-
-            fold = SduPad.default(scenario.platform.pad_size_m).nfold_order
-        elif pad_block is not None:
-            fold = int(pad_block.spec.provides.get("yaw_fold", 1))
-        return {"velocity": PlatformVelocityConfig(measured_yaw_increments=True, yaw_fold=fold)}
-    return {}
+        model: CameraModel = block.spec.build(block.params, CameraLoad(fresh=fresh))
+    except ValueError as err:  # "calibration: ..." from the camera's factory
+        raise ValueError(f"{where}.{err}") from None
+    return model
 
 
 def resolve_blocks(scenario: Any, *, load_camera: bool = True, fresh_camera: bool = False) -> EffectiveBlocks:
@@ -726,92 +279,31 @@ def resolve_blocks(scenario: Any, *, load_camera: bool = True, fresh_camera: boo
     Raises ``ValueError`` with one line naming the scenario key for an unknown name, an unknown or
     rejected parameter, or an incompatible pair of blocks."""
     preset = preset_data(scenario.preset)
-    pblocks = preset.get("blocks", {})
-    names: dict[str, str] = {}
-    preset_given: dict[str, dict[str, Any]] = {}
-    for stage in STAGES:
-        name, params = parse_entry(pblocks[stage], f"preset {scenario.preset}: blocks.{stage}")
-        if name is None:
-            raise ValueError(f"preset {scenario.preset}: blocks.{stage}: no block name")
-        names[stage], preset_given[stage] = name, params
-    preset_names_ = dict(names)
-    source = {stage: f"blocks.{stage} (preset {scenario.preset})" for stage in STAGES}
-    # the per-block sections: parameters of the stage's block, whichever block that is
-    section_params: dict[str, dict[str, Any]] = {}
-    for section, stage in SECTION_STAGE.items():
-        spec_obj = getattr(scenario, section, None)
-        if spec_obj is None:
-            continue
-        values = {k: v for k, v in spec_obj.model_dump().items() if v is not None}
-        if section == "controller" and "l1_adaptive" in values:
-            names["controller"] = "faessler_l1" if values.pop("l1_adaptive") else "faessler"
-        section_params[stage] = {f"{section}.{k}": v for k, v in values.items()}
-    blocks_given: dict[str, dict[str, Any]] = {stage: {} for stage in STAGES}
-    bl = getattr(scenario, "blocks", None)
-    for stage in STAGES:
-        entry = None if bl is None else getattr(bl, stage, None)
-        if entry is None:
-            continue
-        name, params = parse_entry(entry, f"blocks.{stage}")
-        if name is not None:
-            names[stage] = name
-        blocks_given[stage] = params
-        source[stage] = f"blocks.{stage}"
-
+    ch = _preset_choices(scenario.preset, preset)
+    _scenario_choices(scenario, ch)
     chosen: dict[str, Block] = {}
+    wheres: dict[str, str] = {}
     camera_model = None
     for stage in STAGES:
-        name = names[stage]
-        table = BLOCKS[stage]
-        if name not in table:
-            raise ValueError(f"{source[stage]}: unknown {stage} '{name}', expected one of {list(table)}")
-        spec = table[name]
-        # the preset's parameters belong to the preset's block: another block starts from its defaults
-        params = dict(preset_given[stage]) if name == preset_names_[stage] else {}
-        known = {p for p, _, _ in spec.parameters()}
-        for dotted, value in section_params.get(stage, {}).items():
-            key = dotted.split(".", 1)[1]
-            if key not in known:
-                raise ValueError(
-                    f"{dotted}: not a parameter of {stage} '{name}' ({source[stage]}); "
-                    f"its parameters: {', '.join(sorted(known))}"
-                )
-            params[key] = value
-        params.update(blocks_given[stage])
-        where = source[stage].split(" (preset")[0]
-        if section_params.get(stage) and not blocks_given[stage] and source[stage] != f"blocks.{stage}":
-            where = next(iter(section_params[stage])).split(".")[0]  # the section the user wrote
-        ctx = _context(stage, name, scenario, chosen)
-        block = Block(stage, name, make_params(spec, params, ctx, where), params)
-        chosen[stage] = block
+        spec = block_spec(stage, ch.names[stage], ch.source[stage])
+        params, where = _given_params(stage, spec, ch)
+        values = spec.context_values(_resolve_context(scenario, chosen))
+        block = Block(stage, spec.name, spec.make_params(params, values, where), params, spec)
+        chosen[stage], wheres[stage] = block, where
         if stage == "camera" and load_camera:
-            camera_model = _load_camera_model(name, block.params, where, fresh=fresh_camera)
+            camera_model = _load_camera(block, where, fresh_camera)
     color_needed = any(b.spec.needs.get("camera.color") == (True,) for b in chosen.values())
     color = color_needed if scenario.camera.color is None else bool(scenario.camera.color)
-    check_compatibility(chosen, source, color=color)
+    check_compatibility(chosen, ch.source, color=color)
     if load_camera:
         # a geolocator validates its parameters in its constructor (cheap): run it now, not in flight
-        from alight.cameras.pinhole import CameraMount
-
         g = chosen["geolocator"]
-        where = source["geolocator"].split(" (preset")[0]
+        where = ch.source["geolocator"].split(" (preset")[0]
         try:
-            build_geolocator(g, camera_model, CameraMount.downward())
+            g.spec.build(g.params, MountedCamera(camera=camera_model, mount=CameraMount.downward()))
         except (ValueError, TypeError) as err:
             raise ValueError(f"{where}: geolocator '{g.name}' rejects its parameters: {err}") from None
     return EffectiveBlocks(scenario.preset, chosen, dict(preset.get("mission", {})), camera_model, color)
-
-
-def build_geolocator(block: Block, camera: Any, mount: Any) -> Any:
-    """The geolocator of ``block`` (stage ``geolocator``) for a camera model and mount."""
-    kw = {f.name: getattr(block.params, f.name) for f in dataclasses.fields(block.params)}
-    if block.name == "pnp":
-        return PnpGeolocator(camera, mount, **kw)
-    if block.name == "flat_earth":
-        return FlatEarthGeolocator(camera, mount, **kw)
-    if block.name == "homography":
-        return HomographyGeolocator(camera, mount, **kw)
-    return DirectGeolocator(mount, **kw)
 
 
 def check_compatibility(chosen: Mapping[str, Block], source: Mapping[str, str], *, color: bool) -> None:

@@ -10,42 +10,30 @@ it (the camera model and mount, the pad to draw, the low-level gains).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from alight.airframe import Airframe
-from alight.cameras import CameraModel
-from alight.cameras.omni import OmniCamera
-from alight.cameras.pinhole import CameraMount, PinholeCamera
-from alight.control import Controller
-from alight.control.high_level import HighLevelController, HighLevelGains
-from alight.control.l1_adaptive import L1AugmentedController, L1Config
-from alight.control.rate import RateControllerGains, tilt_time_constant_s
+from alight.blockspec import BlockSpec, NoContext
+from alight.cameras import CameraModel, MountedCamera
+from alight.cameras.pinhole import CameraMount
+from alight.control import CONTROLLERS
+from alight.control.rate import RateControllerGains
 from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy, QosEnergyModel, QosSetting
+from alight.estimation import PLATFORM_ESTIMATORS
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
-from alight.estimation.kim_ukf import KimUkf
-from alight.estimation.platform_ekf import PlatformEkf
-from alight.estimation.sdu_kf import SduKalmanFilter
-from alight.mission.blocks import EffectiveBlocks, build_geolocator, preset_names, resolve_blocks
+from alight.mission.blocks import Block, EffectiveBlocks, preset_names, resolve_blocks
 from alight.mission.guidance import Guidance, GuidanceConfig
 from alight.mission.pipeline import Pipeline
 from alight.mission.state_machine import Mission, MissionConfig
 from alight.mission.touchdown_detector import TouchdownConfig
-from alight.pads import PadDesign, WholeMarkerPad
-from alight.pads.apriltag_pad import AprilTagPad
-from alight.pads.falanga_tag import FalangaTag
-from alight.pads.red_target import RedTarget
-from alight.pads.sdu_pad import SduPad
-from alight.perception.aruco import ArucoPadDetector
-from alight.perception.color_filter import RedTargetDetector
-from alight.perception.falanga_tag import FalangaTagDetector
-from alight.perception.nfold import NFoldDetector
+from alight.pads import PADS, PadDesign, WholeMarkerPad
+from alight.perception import DETECTORS, GEOLOCATORS, Detector, DetectorContext
 from alight.perception.qos_detector import QosDetector
-from alight.perception.sdu_marker import SduMarkerDetector
-from alight.planning.candidates import CandidatePlanner, PlannerConfig
-from alight.planning.min_jerk import EndConstraint
+from alight.planning import PLANNERS
 from alight.types import GRAVITY_MPS2
 
 # The ego EKF's noise model: the data sheet of the vehicle's IMU and the VIO's reported accuracy. These
@@ -82,6 +70,9 @@ class Preset:
     blocks: EffectiveBlocks | None = None
     """The blocks it was built from (names and parameters)."""
 
+
+_C = TypeVar("_C")
+_T = TypeVar("_T")
 
 PRESETS: tuple[str, ...] = preset_names()
 """The packaged presets (``mission/preset_data/*.yaml``)."""
@@ -194,90 +185,36 @@ def _wide_view_axis_B_rad(s: Any, camera: Any, mount: CameraMount) -> float:
     return math.atan2(float(axis_B[1]), float(axis_B[0]))
 
 
-def _controller(airframe: Airframe, eff: EffectiveBlocks) -> Controller:
-    c = eff["controller"]
-    p = c.params
-    ki = p.integral_gain
-    gains = HighLevelGains.from_bandwidth(
-        p.position_bandwidth_rad_s,
-        ki=(ki, ki, ki),
-        integral_limit=p.integral_limit_mps2,
-        tau_tilt=tilt_time_constant_s(airframe),
-    )
-    controller: Controller = HighLevelController(airframe, gains)
-    if c.name == "faessler_l1":
-        controller = L1AugmentedController(controller, L1Config())  # type: ignore[arg-type]
-    return controller
-
-
-def _planner(airframe: Airframe, eff: EffectiveBlocks) -> CandidatePlanner:
-    p = eff["planner"].params
-    return CandidatePlanner(
-        PlannerConfig.from_airframe(
-            airframe,
-            n_candidates=p.n_candidates,
-            horizon_min_s=p.horizon_min_s,
-            horizon_max_s=p.horizon_max_s,
-            adopt_threshold_m=p.adopt_threshold_m,
-            end_constraint=EndConstraint.POS_VEL_ACC
-            if p.end_acceleration == "platform"
-            else EndConstraint.POS_VEL,
-        )
-    )
-
-
-def _pad(eff: EffectiveBlocks) -> Any:
-    b = eff["pad"]
-    size = b.params.size_m
-    return {
-        "falanga_tag": FalangaTag.default,
-        "apriltag": AprilTagPad.default,
-        "sdu_marker": SduPad.default,
-        "red_target": RedTarget.default,
-    }[b.name](size_m=size)
-
-
-def _kwargs(params: Any) -> dict[str, Any]:
-    return {k: getattr(params, k) for k in params.__dataclass_fields__}
-
-
-def _detector(s: Any, eff: EffectiveBlocks, pad: Any, camera: Any) -> tuple[Any, QosEnergyModel | None]:
-    d = eff["detector"]
-    p = d.params
-    if d.name == "groundtruth":
-        return None, None
-    if d.name == "falanga":
-        return FalangaTagDetector(pad, p), None
-    if d.name == "aruco":
-        return ArucoPadDetector(pad, **_kwargs(p)), None
-    if d.name == "apriltag":
-        return ArucoPadDetector(None, **_kwargs(p)), None
-    if d.name == "nfold":
-        return NFoldDetector(p, tip_P=pad.nfold_center_P), None
-    if d.name == "red":
-        return RedTargetDetector(p), None
-    kw = _kwargs(p)
-    qos = kw.pop("qos")
-    inner = SduMarkerDetector(pad, camera=camera, **kw)
-    if not qos:
-        return inner, None
+def _qos_policy(s: Any) -> PhasePolicy:
+    """The quality-of-service policy of the scenario's ``energy:`` section (a detector with ``qos``)."""
     es = s.energy
     if es.qos == "fixed":
         f = es.fixed
-        policy = PhasePolicy.fixed(QosSetting(f.rate_hz, f.image_scale, f.max_kernel_px))
-    else:
-        policy = DEFAULT_PHASE_POLICY
-    energy_model = QosEnergyModel.load(device=es.device, mode=es.mode, include_idle=es.include_idle)
-    return QosDetector(inner, policy), energy_model
+        return PhasePolicy.fixed(QosSetting(f.rate_hz, f.image_scale, f.max_kernel_px))
+    return DEFAULT_PHASE_POLICY
 
 
-def _platform_estimator(eff: EffectiveBlocks, camera: Any, mount: CameraMount) -> Any:
-    e = eff["platform_estimator"]
-    if e.name == "unicycle_ekf":
-        return PlatformEkf(e.params)
-    if e.name == "kim_ukf":
-        return KimUkf(e.params, camera=camera, mount=mount)
-    return SduKalmanFilter(e.params)
+def _energy_model(s: Any, detector: Detector | None) -> QosEnergyModel | None:
+    """The compute-energy model of a quality-of-service detector (the scenario's ``energy:`` device)."""
+    if not isinstance(detector, QosDetector):
+        return None
+    es = s.energy
+    return QosEnergyModel.load(device=es.device, mode=es.mode, include_idle=es.include_idle)
+
+
+def _vision(s: Any, eff: EffectiveBlocks) -> tuple[CameraModel | None, PadDesign | None, Detector | None]:
+    """The camera model, the pad and the detector of a vision preset."""
+    d = eff["detector"]
+    camera = eff.camera_model
+    pad = _build(PADS, eff["pad"], NoContext())
+    detector = _build(DETECTORS, d, DetectorContext(pad=pad, camera=camera, qos_policy=_qos_policy(s)))
+    return camera, pad, detector
+
+
+def _build(table: Mapping[str, BlockSpec[_C, _T]], block: Block, context: _C) -> _T:
+    """The object of the chosen ``block``, from its parameters and its stage's build context (``table``:
+    the stage's registry, which types what it builds)."""
+    return table[block.name].build(block.params, context)
 
 
 def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) -> Preset:
@@ -286,14 +223,14 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
     s = scenario
     eff = resolve_blocks(s, fresh_camera=True)  # this flight's own camera model
     uses_camera = bool(eff["detector"].spec.provides.get("image", True))
-    camera: PinholeCamera | OmniCamera | None = eff.camera_model if uses_camera else None
+    camera, pad, detector = _vision(s, eff) if uses_camera else (None, None, None)
     mount = CameraMount.downward()
-    pad = _pad(eff) if uses_camera else None
+    view = MountedCamera(camera=camera, mount=mount)
     mission = Mission(_mission_config(s, eff, airframe.weight_N, visibility_commit_height_m(pad, camera)))
     area = s.search_area
     guidance = Guidance(
         mission.config,
-        _planner(airframe, eff),
+        _build(PLANNERS, eff["planner"], airframe),
         GuidanceConfig(
             search_area=(area.x_min, area.x_max, area.y_min, area.y_max),
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
@@ -320,17 +257,14 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
             },
         ),
     )
-    controller = _controller(airframe, eff)
-    ego = EgoEkf(_EGO_EKF_CONFIG)
-    detector, energy_model = _detector(s, eff, pad, camera) if uses_camera else (None, None)
     pipeline = Pipeline(
-        ego_estimator=ego,
+        ego_estimator=EgoEkf(_EGO_EKF_CONFIG),
         detector=detector,
-        geolocator=build_geolocator(eff["geolocator"], camera, mount),
-        platform_estimator=_platform_estimator(eff, camera, mount),
+        geolocator=_build(GEOLOCATORS, eff["geolocator"], view),
+        platform_estimator=_build(PLATFORM_ESTIMATORS, eff["platform_estimator"], view),
         mission=mission,
         guidance=guidance,
-        controller=controller,
+        controller=_build(CONTROLLERS, eff["controller"], airframe),
         flow_origin_B=(
             airframe.feet_B
             if s.optical_flow is None
@@ -346,7 +280,7 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
         camera=camera,
         pad=pad,
         color_camera=eff.color,
-        energy_model=energy_model,
+        energy_model=_energy_model(s, detector),
         planner_rate_hz=float(eff["planner"].params.rate_hz),
         blocks=eff,
     )

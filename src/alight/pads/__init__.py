@@ -10,11 +10,12 @@ image left, not mirrored. An ``n x n`` texture (``n = round(size_m * px_per_m)``
 grayscale, shape (n, n), or BGR colour (OpenCV's channel order), shape (n, n, 3); the renderer converts
 either to what it draws (a grey pad in a colour image is replicated, a colour pad in a grey image is
 converted with ``cv2.COLOR_BGR2GRAY``).
+
+:data:`PADS` is the pad stage's registry (``pads/registry.py``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -24,6 +25,7 @@ from alight.pads._texture import texture_homography, texture_side_px
 from alight.pads.apriltag_pad import APRILTAG_DICTIONARY, AprilTagPad
 from alight.pads.falanga_tag import FalangaTag
 from alight.pads.red_target import RedTarget
+from alight.pads.registry import PADS, PadParams, PadSpec
 from alight.pads.sdu_pad import SduPad
 from alight.types import FloatArray
 
@@ -59,20 +61,14 @@ class WholeMarkerPad(Protocol):
         ...
 
 
-REGISTRY: dict[str, Callable[..., PadDesign]] = {
-    "falanga": FalangaTag.default,
-    "apriltag": AprilTagPad.default,
-    "red": RedTarget.default,
-    "sdu": SduPad.default,
-}
-"""Pad designs by name; each factory takes ``size_m`` (default 1.5 m)."""
-
 __all__ = [
     "APRILTAG_DICTIONARY",
-    "REGISTRY",
+    "PADS",
     "AprilTagPad",
     "FalangaTag",
     "PadDesign",
+    "PadParams",
+    "PadSpec",
     "RedTarget",
     "SduPad",
     "WholeMarkerPad",

@@ -16,14 +16,15 @@ them once, when it is built, and then calls them before each image (or at each m
 :class:`ModeAware` (the mission phase) and :class:`TiltAware` (the camera's tilt from nadir; the
 quality-of-service wrapper). A detector that declares none depends on the image and its capture time only.
 
-:data:`REGISTRY` and :data:`GEOLOCATORS` map names to factories, so a preset picks blocks by name. A new
-detector: write ``perception/<name>.py`` with a class that satisfies :class:`Detector`, add a factory here,
-and the contract tests in ``tests/perception`` run over it.
+:data:`DETECTORS` and :data:`GEOLOCATORS` (``perception/registry.py``) are the two stages' registries:
+name -> :class:`alight.blockspec.BlockSpec` (parameters, needs/provides, factory). A new detector: write
+``perception/<name>.py`` with a class that satisfies :class:`Detector` and add one entry to
+:data:`DETECTORS` (or :func:`alight.mission.blocks.register_block` from outside the package); the flight,
+``alight blocks``, ``alight detect`` and the contract tests in ``tests/perception`` then use it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from alight.perception.aruco import ArucoPadDetector, merge_observations
@@ -34,6 +35,7 @@ from alight.perception.geolocation import DirectGeolocator, PnpGeolocator
 from alight.perception.homography_geolocation import HomographyGeolocator
 from alight.perception.nfold import NFoldConfig, NFoldDetector
 from alight.perception.pnp import PnpResult, solve_pnp
+from alight.perception.registry import DETECTORS, GEOLOCATORS, DetectorContext, DetectorSpec, GeolocatorSpec
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.types import FloatArray, Observation, PlatformMeasurement
 
@@ -106,79 +108,15 @@ class Geolocator(Protocol):
         ...
 
 
-def _falanga(**kw: Any) -> Detector:
-    from alight.pads import FalangaTag
-
-    size_m = kw.pop("size_m", 1.5)
-    tag = kw.pop("tag", None) or FalangaTag.default(size_m)
-    config = kw.pop("config", None) or FalangaDetectorConfig(**kw)
-    return FalangaTagDetector(tag, config)
-
-
-def _aruco(**kw: Any) -> Detector:
-    from alight.pads import AprilTagPad
-
-    pad = kw.pop("pad", None) or AprilTagPad.default(kw.pop("size_m", 1.5))
-    kw.setdefault("subpixel_corners", True)  # sub-pixel corners halve the PnP error on rendered frames
-    return ArucoPadDetector(pad, **kw)
-
-
-def _apriltag(**kw: Any) -> Detector:
-    return ArucoPadDetector(None, **kw)
-
-
-def _nfold(**kw: Any) -> Detector:
-    from alight.pads.sdu_pad import SduPad
-
-    pad = kw.pop("pad", None) or SduPad.default(kw.pop("size_m", 1.5))
-    config = kw.pop("config", None) or NFoldConfig(
-        **{"order": pad.nfold_order, "oriented": pad.nfold_oriented, **kw}
-    )
-    return NFoldDetector(config, tip_P=pad.nfold_center_P)
-
-
-def _sdu(**kw: Any) -> Detector:
-    from alight.pads.sdu_pad import SduPad
-
-    pad = kw.pop("pad", None) or SduPad.default(kw.pop("size_m", 1.5))
-    return SduMarkerDetector(pad, **kw)
-
-
-def _red(**kw: Any) -> Detector:
-    return RedTargetDetector(kw.pop("config", None) or RedTargetDetectorConfig(**kw))
-
-
-REGISTRY: dict[str, Callable[..., Detector]] = {
-    "falanga": _falanga,
-    "aruco": _aruco,
-    "apriltag": _apriltag,
-    "nfold": _nfold,
-    "sdu": _sdu,
-    "red": _red,
-}
-"""Detectors by name. Factories take keyword overrides: ``falanga`` (``size_m``, ``tag``, ``config`` or
-any :class:`FalangaDetectorConfig` field), ``aruco`` (``size_m``, ``pad``, ``dictionary``, ``parameters``,
-``subpixel_corners``, default True), ``apriltag`` (``dictionary``, ``parameters``), ``nfold`` (paper 004's
-n-fold marker alone: ``size_m``, ``pad``, ``config`` or any :class:`NFoldConfig` field) and ``sdu`` (the
-n-fold marker plus its three ArUco landmarks: ``size_m``, ``pad``, ``camera``, ``nfold`` ...) and ``red``
-(paper 003's colour filter and biggest red contour: any :class:`RedTargetDetectorConfig` field)."""
-
-GEOLOCATORS: dict[str, Callable[..., Geolocator]] = {
-    "pnp": PnpGeolocator,
-    "direct": DirectGeolocator,
-    "homography": HomographyGeolocator,
-    "flat_earth": FlatEarthGeolocator,
-}
-"""Geolocators by name: ``pnp`` (``camera, mount, sigma_px, sigma_ego_pos_m, sigma_ego_att_rad,
-yaw_fold, max_reprojection_px``) and ``direct`` (``mount, sigma_ego_pos_m, sigma_ego_att_rad,
-default_sigma_m``)."""
-
 __all__ = [
+    "DETECTORS",
     "FrameGate",
     "GEOLOCATORS",
-    "REGISTRY",
     "ArucoPadDetector",
     "Detector",
+    "DetectorContext",
+    "DetectorSpec",
+    "GeolocatorSpec",
     "DirectGeolocator",
     "FalangaDetectorConfig",
     "FlatEarthGeolocator",

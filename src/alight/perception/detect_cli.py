@@ -28,56 +28,44 @@ import json
 import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any, TextIO
 
 import cv2
 import numpy as np
 
+from alight.blockspec import NoContext
+from alight.cameras import PinholeCamera
 from alight.errors import ConfigError
-from alight.perception.aruco import ArucoPadDetector, merge_observations
-from alight.perception.falanga_tag import FalangaTagDetector
+from alight.pads import PADS
+from alight.perception import DETECTORS, Detector, DetectorContext
+from alight.perception.aruco import merge_observations
 from alight.perception.pnp import solve_pnp
 from alight.types import Observation
 
 
-def _falanga() -> Any:
-    from alight.pads import FalangaTag
-
-    return FalangaTagDetector(FalangaTag.default())
-
-
-def _aruco_pad() -> Any:
-    from alight.pads import AprilTagPad
-
-    return ArucoPadDetector(AprilTagPad.default(), subpixel_corners=True)
+def detector_names() -> list[str]:
+    """The detectors ``alight detect`` runs: the detector stage's blocks that read an image
+    (:data:`alight.perception.DETECTORS`), in the table's order."""
+    return [name for name, spec in DETECTORS.items() if spec.provides.get("image", True)]
 
 
-def _apriltag_generic() -> Any:
-    return ArucoPadDetector(None, cv2.aruco.DICT_APRILTAG_36h11)
-
-
-def _registry(name: str) -> Callable[[], Any]:
-    def make() -> Any:
-        from alight.perception import REGISTRY
-
-        return REGISTRY[name]()
-
-    return make
-
-
-DETECTORS: dict[str, Callable[[], Any]] = {
-    "falanga": _falanga,
-    "aruco": _aruco_pad,
-    "apriltag": _apriltag_generic,
-    "nfold": _registry("nfold"),
-    "sdu": _registry("sdu"),
-    "red": _registry("red"),
-}
-"""Detector names of ``alight detect``: ``falanga`` (paper 000's tag, 1.5 m), ``aruco`` (the AprilTag
-pad's layout: only its marker ids, with pad points for the pose), ``apriltag`` (every AprilTag 36h11
-marker, ids and corners only: for counting markers in any photo), ``nfold`` (paper 004's 4-fold marker
-alone), ``sdu`` (paper 004's n-fold + ArUco landing marker), ``red`` (paper 003's colour filter)."""
+def make_detector(name: str) -> Detector:
+    """The detector block ``name`` at its default parameters, on its pad's default layout (1.5 m);
+    :class:`~alight.errors.ConfigError` (one line, the known names) for a name it does not know."""
+    known = detector_names()
+    if name not in known:
+        raise ConfigError(f"unknown detector {name!r}; known: {', '.join(sorted(known))}")
+    spec = DETECTORS[name]
+    pad_names = spec.needs.get("pad", ())
+    pad = None
+    if pad_names:
+        pad_spec = PADS[pad_names[0]]
+        pad = pad_spec.build(pad_spec.default_params(), NoContext())
+    det = spec.build(spec.default_params(), DetectorContext(pad=pad))
+    if det is None:  # a block that reads no image is not in detector_names()
+        raise ConfigError(f"detector {name!r} reads no image")
+    return det
 
 
 def read_image(path: str) -> tuple[np.ndarray | None, str | None]:
@@ -110,7 +98,7 @@ def _obs_json(o: Observation) -> dict[str, Any]:
     return {"kind": o.kind, "quality": round(float(o.quality), 4), key: pts}
 
 
-def _pose_json(observations: Sequence[Observation], camera: Any) -> dict[str, Any] | None:
+def _pose_json(observations: Sequence[Observation], camera: PinholeCamera) -> dict[str, Any] | None:
     merged = merge_observations(observations, kind="all")
     if merged is None or merged.points_P is None:
         return None
@@ -132,18 +120,16 @@ def _pose_json(observations: Sequence[Observation], camera: Any) -> dict[str, An
 def run_detect(
     paths: list[str], detector: str, camera_path: str | None = None, out: TextIO | None = None
 ) -> int:
-    """Run the detector ``detector`` (a key of :data:`DETECTORS`) on every image in ``paths`` and write
+    """Run the detector ``detector`` (one of :func:`detector_names`) on every image in ``paths`` and write
     one JSON line per image to ``out`` (stdout by default). ``camera_path``: a calibration file (OpenCV
     YAML/XML/JSON) for the pose. Returns 0 when every image was read, 2 when any could not be."""
     stream = sys.stdout if out is None else out
-    if detector not in DETECTORS:
-        raise ConfigError(f"unknown detector {detector!r}; known: {', '.join(sorted(DETECTORS))}")
+    det = make_detector(detector)  # raises ConfigError for an unknown name
     camera = None
     if camera_path is not None:
         from alight.cameras import load_camera
 
         camera = load_camera(camera_path)  # raises InputError with the file name
-    det = DETECTORS[detector]()
     status = 0
     for path in paths:
         img, err = read_image(path)
@@ -162,10 +148,10 @@ def run_detect(
             "observations": [_obs_json(o) for o in obs],
         }
         if camera is not None and any(o.points_P is not None for o in obs):
-            if hasattr(camera, "K"):
+            if isinstance(camera, PinholeCamera):
                 rec["pose"] = _pose_json(obs, camera)
                 h, w = img.shape[:2]
-                if (getattr(camera, "width", w), getattr(camera, "height", h)) != (w, h):
+                if (camera.width, camera.height) != (w, h):
                     rec["camera_size_mismatch"] = True
             else:
                 rec["pose"] = None
@@ -176,4 +162,4 @@ def run_detect(
     return status
 
 
-__all__ = ["DETECTORS", "read_image", "run_detect"]
+__all__ = ["detector_names", "make_detector", "read_image", "run_detect"]

@@ -50,6 +50,7 @@ import math
 
 import numpy as np
 
+from alight.cameras import CameraModel
 from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.perception.geolocation import skew
 from alight.types import FloatArray, Observation, PlatformMeasurement
@@ -105,7 +106,7 @@ class FlatEarthGeolocator:
 
     def __init__(
         self,
-        camera: object,
+        camera: CameraModel,
         mount: CameraMount,
         *,
         deck_height_m: float = 0.0,
@@ -116,8 +117,10 @@ class FlatEarthGeolocator:
         max_nadir_angle_rad: float = math.radians(85.0),
         pixel_step: float = 0.05,
     ) -> None:
-        if not hasattr(camera, "unproject"):
-            raise ValueError("camera must have unproject(pixels) -> rays")
+        if not isinstance(camera, CameraModel):
+            raise ValueError(
+                f"camera must be a CameraModel (unproject(pixels) -> rays), got {type(camera).__name__}"
+            )
         for name, v in (
             ("sigma_px", sigma_px),
             ("sigma_att_rad", sigma_att_rad),

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -46,14 +46,26 @@ class PnpResult:
     """Number of correspondences used."""
 
 
-def camera_matrices(camera: Any) -> tuple[FloatArray, FloatArray]:
-    """``(K (3, 3), dist (k,))`` of a pinhole camera model: anything with ``K`` and optionally ``dist``
-    in OpenCV's order (k1, k2, p1, p2[, k3 ...])."""
+class PinholeIntrinsics(Protocol):
+    """What PnP needs of a camera: a pinhole model's intrinsics (:class:`alight.cameras.PinholeCamera`)."""
+
+    @property
+    def K(self) -> FloatArray:
+        """Camera matrix (3, 3), px."""
+        ...
+
+    @property
+    def dist(self) -> FloatArray:
+        """Distortion coefficients in OpenCV's order (k1, k2, p1, p2[, k3 ...]); zeros: none."""
+        ...
+
+
+def camera_matrices(camera: PinholeIntrinsics) -> tuple[FloatArray, FloatArray]:
+    """``(K (3, 3), dist (k,))`` of a pinhole camera model."""
     K = np.asarray(camera.K, dtype=np.float64)
     if K.shape != (3, 3) or not np.isfinite(K).all():
         raise ValueError(f"camera.K must be a finite (3, 3) matrix, got shape {K.shape}")
-    dist = getattr(camera, "dist", None)
-    d = np.zeros(0) if dist is None else np.asarray(dist, dtype=np.float64).ravel()
+    d = np.asarray(camera.dist, dtype=np.float64).ravel()
     if not np.isfinite(d).all():
         raise ValueError("camera.dist must be finite")
     return K, d
@@ -75,15 +87,66 @@ def project_with_jacobian(
     return np.asarray(px, dtype=np.float64).reshape(-1, 2), np.asarray(jac, dtype=np.float64)[:, :6].copy()
 
 
+_Candidate = tuple[float, FloatArray, FloatArray]
+"""A PnP solution: its reprojection error (px; nan when the solver gave none), ``rvec`` and ``tvec``."""
+
+
+def _in_front(n_sol: int, rvecs: Any, tvecs: Any, errs: Any) -> list[_Candidate]:
+    """The solver's finite solutions with the pad in front of the camera, with their errors."""
+    e = np.asarray(errs, dtype=np.float64).ravel() if errs is not None else np.zeros(0)
+    candidates = []
+    for k in range(n_sol):
+        rv = np.asarray(rvecs[k], dtype=np.float64).reshape(3, 1)
+        tv = np.asarray(tvecs[k], dtype=np.float64).reshape(3, 1)
+        if np.isfinite(rv).all() and np.isfinite(tv).all() and tv[2, 0] > 0:
+            candidates.append((float(e[k]) if e.size == n_sol else math.nan, rv, tv))
+    return candidates
+
+
+def _best_refined(
+    candidates: list[_Candidate],
+    obj: FloatArray,
+    img: FloatArray,
+    K: FloatArray,
+    d: FloatArray | None,
+    pts: FloatArray,
+    px: FloatArray,
+    dist: FloatArray,
+) -> _Candidate | None:
+    """The candidate with the smallest RMS reprojection error after LM refinement, as (rms, rvec (3,),
+    tvec (3,)).
+
+    IPPE's two solutions (the planar ambiguity) come with their reprojection errors. Refining both costs
+    half of the solve; a solution with an error over 4x (and 1 px above) the best one's in front of the
+    camera is in another basin, which LM refinement (a local step) cannot turn into the better fit."""
+    errors = [c[0] for c in candidates if math.isfinite(c[0])]
+    e_best = min(errors) if len(errors) == len(candidates) and errors else math.inf
+    best: _Candidate | None = None
+    for err, rv, tv in candidates:
+        if err > max(4.0 * e_best, e_best + 1.0):
+            continue
+        try:
+            rv_lm, tv_lm = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
+            # the refined float64 rv, tv (no conversion); OpenCV's stubs type them MatLike, without the dtype
+            rv, tv = np.asarray(rv_lm, dtype=np.float64), np.asarray(tv_lm, dtype=np.float64)
+        except cv2.error:
+            pass
+        proj, _ = project_with_jacobian(pts, rv, tv, K, dist)
+        rms = float(np.sqrt(np.mean(np.sum((proj - px) ** 2, axis=1))))
+        if best is None or rms < best[0]:
+            best = (rms, rv.ravel().copy(), tv.ravel().copy())
+    return best
+
+
 def solve_pnp(
     pixels: FloatArray,
     points_P: FloatArray,
-    camera: Any,
+    camera: PinholeIntrinsics,
     sigma_px: float = 1.0,
 ) -> PnpResult | None:
     """Pose of the pad in the camera frame from ``pixels`` (N, 2) seen at ``points_P`` (N, 3, m).
 
-    ``camera`` is a pinhole model (``K`` (3, 3) and optional ``dist``). ``sigma_px`` is the standard
+    ``camera`` is a pinhole model (``K`` (3, 3) and ``dist``). ``sigma_px`` is the standard
     deviation of the pixel noise used for the covariance (px). Returns None when the problem is
     degenerate (fewer than 4 points, collinear points, or a solution behind the camera).
 
@@ -115,32 +178,8 @@ def solve_pnp(
         n_sol, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, K, d, flags=flag)
     except cv2.error:
         return None
-    # IPPE's two solutions (the planar ambiguity) come with their reprojection errors. Refining both costs
-    # half of the solve; a solution with an error over 4x (and 1 px above) the best one's in front of the
-    # camera is in another basin, which LM refinement (a local step) cannot turn into the better fit.
-    e = np.asarray(errs, dtype=np.float64).ravel() if errs is not None else np.zeros(0)
-    candidates = []
-    for k in range(int(n_sol)):
-        rv = np.asarray(rvecs[k], dtype=np.float64).reshape(3, 1)
-        tv = np.asarray(tvecs[k], dtype=np.float64).reshape(3, 1)
-        if np.isfinite(rv).all() and np.isfinite(tv).all() and tv[2, 0] > 0:
-            candidates.append((float(e[k]) if e.size == int(n_sol) else math.nan, rv, tv))
-    errors = [c[0] for c in candidates if math.isfinite(c[0])]
-    e_best = min(errors) if len(errors) == len(candidates) and errors else math.inf
-    best: tuple[float, FloatArray, FloatArray] | None = None
-    for err, rv, tv in candidates:
-        if err > max(4.0 * e_best, e_best + 1.0):
-            continue
-        try:
-            rv_lm, tv_lm = cv2.solvePnPRefineLM(obj, img, K, d, rv, tv)
-            # the refined float64 rv, tv (no conversion); OpenCV's stubs type them MatLike, without the dtype
-            rv, tv = np.asarray(rv_lm, dtype=np.float64), np.asarray(tv_lm, dtype=np.float64)
-        except cv2.error:
-            pass
-        proj, _ = project_with_jacobian(pts, rv, tv, K, dist)
-        rms = float(np.sqrt(np.mean(np.sum((proj - px) ** 2, axis=1))))
-        if best is None or rms < best[0]:
-            best = (rms, rv.ravel().copy(), tv.ravel().copy())
+    candidates = _in_front(int(n_sol), rvecs, tvecs, errs)
+    best = _best_refined(candidates, obj, img, K, d, pts, px, dist)
     if best is None:
         return None
     rms, rvec, tvec = best

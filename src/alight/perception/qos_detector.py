@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from alight.energy.qos import PhasePolicy, QosEnergyModel, QosSetting
 from alight.perception.image_input import as_gray_u8
 from alight.perception.nfold import NFoldDetector
+from alight.perception.sdu_marker import SduMarkerDetector
 from alight.types import FloatArray, Mode, Observation
 
 # --------------------------------------------------------------------------------------------------
@@ -165,8 +166,9 @@ class QosDetector:
     def _nfold(self) -> NFoldDetector | None:
         if isinstance(self.inner, NFoldDetector):
             return self.inner
-        nf = getattr(self.inner, "nfold", None)
-        return nf if isinstance(nf, NFoldDetector) else None
+        if isinstance(self.inner, SduMarkerDetector):  # the n-fold marker plus its ArUco landmarks
+            return self.inner.nfold
+        return None
 
     def _nfold_sizes(self) -> tuple[int, ...] | None:
         nf = self._nfold()
@@ -186,18 +188,18 @@ class QosDetector:
         if det is not None:
             return det
         inner = self.inner
-        nf = self._nfold()
         if isinstance(inner, NFoldDetector):
             cfg = replace(inner.config, kernel_sizes=capped_kernel_sizes(inner.config.kernel_sizes, max_k))
             det = NFoldDetector(cfg, tip_P=inner.tip_P)
         else:
             det = copy.copy(inner)
-            if nf is not None:
+            if isinstance(det, SduMarkerDetector):
+                nf = det.nfold
                 cfg = replace(nf.config, kernel_sizes=capped_kernel_sizes(nf.config.kernel_sizes, max_k))
                 det.nfold = NFoldDetector(cfg, tip_P=nf.tip_P)
-            cam = getattr(inner, "camera", None)
-            if cam is not None and (int(cam.width), int(cam.height)) != (width, height):
-                det.camera = ScaledCamera(cam, width, height)
+                cam = det.camera
+                if cam is not None and (int(cam.width), int(cam.height)) != (width, height):
+                    det.camera = ScaledCamera(cam, width, height)
         self._variants[key] = det
         return det
 

@@ -1,5 +1,6 @@
 """Planning: the minimum-jerk motion primitive with its feasibility tests, the candidate planner of
-paper 000 (Sec. II-D) and the exploration (coverage) route. See README.md in this folder."""
+paper 000 (Sec. II-D) and the exploration (coverage) route. :data:`PLANNERS` (``planning/registry.py``) is the
+planner stage's registry. See README.md in this folder."""
 
 from alight.planning.candidates import (
     CandidatePlanner,
@@ -20,6 +21,7 @@ from alight.planning.min_jerk import (
     min_jerk_coefficients,
     min_jerk_cost,
 )
+from alight.planning.registry import PLANNERS, PlannerParams, PlannerSpec
 
 __all__ = [
     "CandidateBatch",
@@ -28,9 +30,12 @@ __all__ = [
     "ExplorationRoute",
     "InputFeasibility",
     "MinJerkTrajectory",
+    "PLANNERS",
     "PlanResult",
     "PlanStatus",
     "PlannerConfig",
+    "PlannerParams",
+    "PlannerSpec",
     "evaluate_candidates",
     "floor_feasibility",
     "footprint_width_m",
