@@ -9,8 +9,8 @@ combinations and the one-line refusal of each incompatible one) and ``examples/c
 
 from __future__ import annotations
 
+import re
 import sys
-import typing
 from pathlib import Path
 from typing import Any
 
@@ -35,8 +35,15 @@ default (`alight blocks` lists every block's parameters and defaults; `alight fl
 (e.g. `estimator.use_turn_rate` with `kim_kaist`, whose UKF has no turn-rate state). The `blocks`
 section picks the implementations themselves; see [blocks.md](blocks.md).
 
-This file is generated from the models by `python tools/gen_docs.py` (a test checks it is up to date):
-edit the docstrings in `src/alight/scenario.py`, not this table.
+**Each setting is declared once**, in the runtime configuration that uses it: the `mission` keys in
+`MissionConfig` (`mission/state_machine.py`) and `GuidanceConfig` (`mission/guidance.py`),
+`mission.touchdown` in `TouchdownConfig`, `platform.telemetry` in `TelemetryConfig`, `rangefinder` and
+`optical_flow` in `sim/sensors.py`, `camera.distractors` in `DistractorSpec`; the other sections in
+`src/alight/scenario.py`. A `mission` key left `none` flies the preset's value (listed below as
+"Presets:") or else the default the table names.
+
+This file is generated from those declarations by `python tools/gen_docs.py` (a test checks it is up to
+date): edit their docstrings, not this table.
 
 | key | default | meaning |
 |---|---|---|
@@ -62,22 +69,10 @@ FALLBACK = {
     "perception.rate_hz": "detection rate",
     "camera.gamma": "gamma of the rendered brightness",
     "camera.brightness_drift_period_s": "period of the brightness drift (s)",
-    "camera.distractors.count": "red objects per 20 m ground tile",
-    "camera.distractors.shape": "`disc`, `rect` or `mixed`",
-    "camera.distractors.aspect": "long side over short side of a rectangle",
-    "camera.distractors.color_bgr": "colour (B, G, R)",
-    "camera.distractors.color_jitter_dn": "random change of the colour per object (grey levels)",
     "search_area.x_min": "the area explored (m, W)",
     "search_area.x_max": "the area explored (m, W)",
     "search_area.y_min": "the area explored (m, W)",
     "search_area.y_max": "the area explored (m, W)",
-    "mission.explore_altitude_m": "altitude of the coverage pattern",
-    "mission.track_height_m": "height above the pad while tracking",
-    "mission.motor_cutoff_range_m": "motors stop when three range-finder readings in a row (measured from "
-    "the feet) are below this",
-    "mission.lost_timeout_s": "tracking gives up after this long without the target",
-    "mission.max_go_arounds": "go-arounds before the mission aborts",
-    "mission.time_budget_s": "abort after this long without landing",
     "faults": "faults injected into the detections",
     "search_area": "the area the exploration covers (m, W)",
     "mission": "the state machine and the guidance",
@@ -89,12 +84,12 @@ FALLBACK = {
 }
 
 
-def _models(annotation: Any) -> list[type[BaseModel]]:
-    out = []
-    for a in typing.get_args(annotation) or (annotation,):
-        if isinstance(a, type) and issubclass(a, BaseModel):
-            out.append(a)
-    return out
+def _models(annotation: Any) -> list[type]:
+    """The scenario section in an annotation: a pydantic model or a settings dataclass."""
+    from alight.settings import is_section
+
+    sub = is_section(annotation)
+    return [] if sub is None else [sub]
 
 
 def _fmt_default(value: Any) -> str:
@@ -111,8 +106,39 @@ def _fmt_default(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+def _plain_roles(text: str) -> str:
+    """Sphinx roles (``:class:`X```) as code: the settings dataclasses' docstrings use them."""
+    return re.sub(r":(?:data|class|func|meth|attr|mod):`([^`]+)`", r"``\1``", text)
+
+
 def _one_line(text: str | None) -> str:
-    return " ".join((text or "").split()).replace("|", "\\|").replace("``", "`")
+    return " ".join(text.split()).replace("|", "\\|").replace("``", "`")
+
+
+def _runtime_note(model: type, name: str, default: Any) -> str:
+    """For a key of a derived section left None by default: the default of the field it comes from, and
+    the packaged presets' own values (``mission:`` sections)."""
+    from alight.mission.blocks import preset_names
+    from alight.scenario import preset_mission_defaults
+    from alight.settings import default_of, sources
+
+    origin = sources(model).get(name)
+    if origin is None or default is not None:
+        return ""
+    note = ""
+    runtime = default_of(*origin)
+    if runtime is not None:
+        note = f" Default: `{_fmt_default(runtime).strip('`')}`."
+    if model.__name__ in ("MissionSpec", "TouchdownSpec"):
+        sets = []
+        for preset in preset_names():
+            values = preset_mission_defaults(preset)
+            values = values.get("touchdown", {}) if model.__name__ == "TouchdownSpec" else values
+            if name in values:
+                sets.append(f"`{preset}` {_fmt_default(values[name]).strip('`')}")
+        if sets:
+            note += " Presets: " + ", ".join(sets) + "."
+    return note
 
 
 def combinations() -> tuple[list[dict[str, str]], list[tuple[dict[str, str], str]]]:
@@ -148,13 +174,15 @@ def combinations() -> tuple[list[dict[str, str]], list[tuple[dict[str, str], str
     return good, bad
 
 
-def scenario_rows(model: type[BaseModel] | None = None, prefix: str = "") -> list[tuple[str, str, str]]:
-    """(dotted key, default, meaning) of every scenario key, sections before their keys."""
+def scenario_rows(model: type | None = None, prefix: str = "") -> list[tuple[str, str, str]]:
+    """(dotted key, default, meaning) of every scenario key, sections before their keys: each key's
+    default and meaning are its declaration's (the settings dataclass field, ``alight.settings``)."""
     from alight.scenario import Scenario
+    from alight.settings import section_fields
 
     model = model or Scenario
     rows: list[tuple[str, str, str]] = []
-    for name, f in model.model_fields.items():
+    for name, f in section_fields(model).items():
         key = f"{prefix}{name}"
         subs = _models(f.annotation)
         default = f.get_default(call_default_factory=True)
@@ -165,7 +193,8 @@ def scenario_rows(model: type[BaseModel] | None = None, prefix: str = "") -> lis
             rows += scenario_rows(sub, key + ".")
             continue
         shown = "required" if f.is_required() else _fmt_default(default)
-        rows.append((f"`{key}`", shown, _one_line(f.description or FALLBACK.get(key))))
+        meaning = (f.description or FALLBACK.get(key) or "") + _runtime_note(model, name, default)
+        rows.append((f"`{key}`", shown, _one_line(_plain_roles(meaning))))
         if subs:  # a list of entries (e.g. faults.accel_bias_steps): the keys of one entry
             rows += scenario_rows(subs[0], key + ".")
     return rows

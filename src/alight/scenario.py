@@ -25,24 +25,32 @@ axis, altitudes and heights <= 1000 m, latencies <= 10 s, rates <= 1000 Hz, dist
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from functools import cache
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from alight.errors import ConfigError
+from alight.mission.guidance import GuidanceConfig
+from alight.mission.state_machine import MissionConfig
+from alight.mission.touchdown_detector import TouchdownConfig
+from alight.settings import (
+    MAX_DURATION_S,
+    FiniteFloat,
+    NonNegFloat,
+    PositiveFloat,
+    Probability,
+    Section,
+    dataclass_keys,
+    section_model,
+)
+from alight.sim.sensors import OpticalFlowConfig, RangeFinderConfig
+from alight.sim.telemetry import TelemetryConfig
+from alight.sim.textures import DistractorSpec
 
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
-
-MAX_DURATION_S = 3600.0
-"""Longest mission (s): an hour, ten times a multirotor's endurance."""
 MAX_DISTANCE_M = 1.0e4
 """Largest distance, length or coordinate (m): 10 km."""
 
@@ -51,7 +59,6 @@ Coordinate = Annotated[float, Field(ge=-MAX_DISTANCE_M, le=MAX_DISTANCE_M, allow
 Length = Annotated[float, Field(gt=0, le=MAX_DISTANCE_M, allow_inf_nan=False)]
 MountCoordinate = Annotated[float, Field(ge=-2.0, le=2.0, allow_inf_nan=False)]
 """A sensor's position on the vehicle along one body axis (m): within 2 m of the body origin."""
-Altitude = Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)]
 RateHz = Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)]
 WindComponent = Annotated[float, Field(ge=-60.0, le=60.0, allow_inf_nan=False)]
 
@@ -107,23 +114,6 @@ class SpeedProfileSpec(_Strict):
         return self
 
 
-class TelemetrySpec(_Strict):
-    """The platform's own GNSS fix, broadcast to the aircraft (``sim/telemetry.py``)."""
-
-    rate_hz: PositiveFloat = 10.0
-    """Fixes per second (Hz)."""
-    noise_m: NonNegFloat = 0.5
-    """Per-axis standard deviation of the white position noise (m)."""
-    velocity_noise_mps: NonNegFloat = 0.1
-    """Per-axis standard deviation of the white velocity noise (m/s)."""
-    latency_s: Annotated[float, Field(ge=0, le=5.0, allow_inf_nan=False)] = 0.2
-    """Delay from the fix to its arrival on the aircraft (s), at most 5."""
-    bias_m: NonNegFloat = 1.0
-    """Standard deviation of the constant position bias per horizontal axis, half of it vertically (m)."""
-    dropout_prob: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.0
-    """Probability that a fix is lost."""
-
-
 class PlatformSpec(_Strict):
     """The ground vehicle that carries the pad."""
 
@@ -143,7 +133,7 @@ class PlatformSpec(_Strict):
     random_max_curvature: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = 0.15
     speed_profile: SpeedProfileSpec | None = None
     """Changes of speed along the path (the path's geometry stays); None: ``speed_mps`` throughout."""
-    telemetry: TelemetrySpec | None = None
+    telemetry: TelemetryConfig | None = None
     """The platform broadcasts its GNSS fix to the aircraft; None (default): no telemetry."""
 
 
@@ -226,22 +216,6 @@ class PerceptionSpec(_Strict):
     the estimator confirm a track (5 gated sightings in a row) before the vehicle follows it."""
 
 
-class DistractorSpecModel(_Strict):
-    """Red objects painted on the ground, per 20 m ground tile (``alight.sim.textures.DistractorSpec``)."""
-
-    count: Annotated[int, Field(ge=0, le=500)] = 8
-    size_m: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 0.8
-    """Diameter of a disc, long side of a rectangle (m)."""
-    shape: Literal["disc", "rect", "mixed"] = "mixed"
-    aspect: Annotated[float, Field(ge=1, le=100, allow_inf_nan=False)] = 2.0
-    color_bgr: tuple[
-        Annotated[int, Field(ge=0, le=255)],
-        Annotated[int, Field(ge=0, le=255)],
-        Annotated[int, Field(ge=0, le=255)],
-    ] = (40, 40, 200)
-    color_jitter_dn: Annotated[float, Field(ge=0, le=255, allow_inf_nan=False)] = 25.0
-
-
 class CameraSpec(_Strict):
     """The onboard camera of the vision presets and how its images are rendered."""
 
@@ -267,7 +241,7 @@ class CameraSpec(_Strict):
     brightness_drift: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = 0.0
     """Relative amplitude of a slow sinusoidal brightness change (clouds passing the sun); 0: none."""
     brightness_drift_period_s: Annotated[float, Field(gt=0, le=1.0e5, allow_inf_nan=False)] = 60.0
-    distractors: DistractorSpecModel | None = None
+    distractors: DistractorSpec | None = None
     """Coloured objects on the ground that are not the target (the false targets of a colour filter)."""
 
 
@@ -435,243 +409,114 @@ class SearchArea(_Strict):
         return self
 
 
-class TouchdownSpec(_Strict):
-    """The onboard land detector (``alight.mission.touchdown_detector.TouchdownConfig``); None keeps the
-    block's default."""
+# -- sections derived from the runtime settings dataclasses (alight.settings): each key's type, bound,
+# default and docstring are those of the dataclass field that uses it, declared once there --
 
-    max_vertical_speed_mps: PositiveFloat | None = None
-    """Ground contact needs |v_z| relative to the platform below this (m/s)."""
-    impact_mps2: PositiveFloat | None = None
-    """An impact: the accelerometer differs from 1 g by more than this (m/s^2)."""
-    impact_memory_s: PositiveFloat | None = None
-    """An impact is evidence of contact for this long (s)."""
-    range_floor_m: PositiveFloat | None = None
-    """A valid range reading below this is at the floor (m)."""
-    held_thrust_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = None
-    """Also contact evidence: thrust below this fraction of hover without sinking."""
-    airborne_range_m: PositiveFloat | None = None
-    """A valid range reading above this vetoes ground contact (m)."""
-    ground_contact_s: PositiveFloat | None = None
-    """Ground contact held this long before the thrust spools down (s)."""
-    spool_down_s: PositiveFloat | None = None
-    """Ramp of the thrust to zero on ground contact (s)."""
-    low_thrust_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = None
-    """Landed needs the thrust below this fraction of hover ..."""
-    landed_s: PositiveFloat | None = None
-    """... for this long (s)."""
-    level_to: Literal["vertical", "steady"] | None = None
-    """On ground contact level the vehicle toward the vertical (default) or toward the thrust direction
-    it held on average before contact (``steady``: on a fast deck it leans into the drag of its airspeed;
-    levelling brakes it against the deck)."""
+_RUNTIME_ONLY_TOUCHDOWN = ("hover_thrust_N", "level_gain_per_s", "steady_tilt_time_constant_s")
+"""The land detector's parameters a scenario does not set: the airframe's hover thrust, and two the
+detector's tests hold."""
 
+_RUNTIME_ONLY_MISSION = (
+    "hover_tolerance_m",
+    "hover_speed_tolerance_mps",
+    "land_dwell_s",
+    "land_tilt_wait_s",
+    "land_tilt_time_constant_s",
+    "abort_hover_s",
+    "touchdown",
+)
+"""The mission logic's parameters a scenario does not set (``touchdown`` is its own section)."""
 
-class RangeFinderSpec(_Strict):
-    """The downward range finder (TeraRanger One-like), measured from the landing-gear feet."""
+_SCENARIO_GUIDANCE = (
+    "search_pattern",
+    "aim_camera",
+    "intercept",
+    "adaptive_horizon",
+    "no_feasible",
+    "search_speed_uncertainty_mps",
+    "max_platform_speed_mps",
+    "track_view_sigmas",
+    "scan_yaw_rate_rad_s",
+    "weathervane_min_tilt_rad",
+    "takeoff_climb_speed_mps",
+)
+"""The guidance's parameters a scenario sets (the rest come from the airframe, the camera and the search
+area, or are the guidance's own)."""
 
-    min_range_m: NonNegFloat = 0.2
-    """Blind zone (m): closer than this the sensor reports ``-inf`` (ROS REP 117), as a real
-    TeraRanger One (0.2 m) does; 0 for an ideal sensor."""
-    max_range_m: PositiveFloat = 14.0
-    """Beyond this it reports ``+inf`` (m)."""
-    noise_m: NonNegFloat = 0.02
-    """White noise on the range (m)."""
-
-    @model_validator(mode="after")
-    def _ordered(self) -> RangeFinderSpec:
-        if not self.max_range_m > self.min_range_m:
-            raise ValueError("rangefinder.max_range_m must be above min_range_m")
-        return self
+_SCENARIO_ONLY_DEFAULTS = ("search_pattern", "aim_camera")
+"""Mission keys a preset does not set: their scenario default is the guidance's."""
 
 
-class OpticalFlowSpec(_Strict):
-    """A downward optical-flow module with its own ranger (ARK Flow / Holybro H-Flow class,
-    ``alight.sim.sensors.OpticalFlowConfig``): it measures the vehicle's velocity relative to the surface
-    under it, the deck in a landing. The pipeline reads it in the committed descent, where the camera no
-    longer sees the whole pad: a deck that brakes or speeds up under the last half metre sends the
-    vehicle around (``mission.land_commit_deck_velocity_error_mps``)."""
+FlowPosition = tuple[MountCoordinate, MountCoordinate, MountCoordinate]
+_FLOW_POSITION_DOC = """Where the module sits in the body frame B (m; x forward, y left, z up; what PX4's
+``EKF2_OF_POS_X/Y/Z`` give in FRD); None: at the landing-gear feet under the body origin. The simulated
+module measures from there and the pipeline takes the rotation's velocity at that point (w x r) out of
+what it reads, on the simulator and on a real vehicle through the bridge alike. It may not sit below the
+feet (checked against the airframe when the mission is built). A scenario key of its own: the runtime
+config holds the resolved ``origin_B``."""
 
-    rate_hz: RateHz = 50.0
-    """Sample rate (Hz); 200 Hz divided by a whole number (the simulator's sensor tick)."""
-    noise_rad_s: NonNegFloat = 0.05
-    """White noise on each flow axis (rad/s)."""
-    min_range_m: NonNegFloat = 0.08
-    """Closest surface the flow sensor resolves (m)."""
-    max_range_m: PositiveFloat = 4.0
-    """Farthest surface its ranger measures (m)."""
-    range_noise_m: NonNegFloat = 0.01
-    """White noise on its distance (m)."""
-    position_B_m: tuple[MountCoordinate, MountCoordinate, MountCoordinate] | None = None
-    """Where the module sits in the body frame B (m; x forward, y left, z up; what PX4's
-    ``EKF2_OF_POS_X/Y/Z`` give in FRD); None: at the landing-gear feet under the body origin. The
-    simulated module measures from there and the pipeline takes the rotation's velocity at that point
-    (w x r) out of what it reads, on the simulator and on a real vehicle through the bridge alike. It may
-    not sit below the feet (checked against the airframe when the mission is built)."""
 
-    @model_validator(mode="after")
-    def _checked(self) -> OpticalFlowSpec:
-        if not self.max_range_m > self.min_range_m:
-            raise ValueError("optical_flow.max_range_m must be above min_range_m")
-        ticks = 200.0 / self.rate_hz
-        if abs(ticks - round(ticks)) > 1e-9:
-            raise ValueError(
-                f"optical_flow.rate_hz must divide 200 Hz (200, 100, 50, 40, 25, ...), got {self.rate_hz:g}"
+def _fields_except(cls: type, excluded: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(k for k in dataclass_keys(cls) if k not in excluded)
+
+
+if TYPE_CHECKING:  # mypy sees a section with any attribute; pydantic sees the derived model
+    TouchdownSpec = Section
+    RangeFinderSpec = Section
+    OpticalFlowSpec = Section
+    MissionSpec = Section
+else:
+    TouchdownSpec = section_model(
+        "TouchdownSpec",
+        "The onboard land detector (``alight.mission.touchdown_detector.TouchdownConfig``); None keeps the"
+        " preset's or the block's value.",
+        [(TouchdownConfig, _fields_except(TouchdownConfig, _RUNTIME_ONLY_TOUCHDOWN))],
+        optional=True,
+    )
+    RangeFinderSpec = section_model(
+        "RangeFinderSpec",
+        "The downward range finder (TeraRanger One-like, ``alight.sim.sensors.RangeFinderConfig``),"
+        " measured from the landing-gear feet.",
+        [
+            (
+                RangeFinderConfig,
+                {"min_range_m": "min_range_m", "max_range_m": "max_range_m", "noise_m": "noise_std_m"},
             )
-        return self
-
-
-class MissionSpec(_Strict):
-    """Overrides of the mission logic's parameters (``alight.mission.state_machine.MissionConfig``, which
-    holds every default); None: the block's default, or the preset's where a preset sets one."""
-
-    takeoff_altitude_m: Altitude | None = None
-    """Height of the take-off climb over the take-off point (m; block default: the exploration
-    altitude)."""
-    explore_altitude_m: Altitude | None = None
-    """Height of the search (m, at most 1000 as every altitude and height; block default 12)."""
-    track_height_m: Altitude | None = None
-    """Height above the pad while tracking, before the descent (m; block default 2.5)."""
-    land_speed_mps: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] | None = None
-    """Descent speed of the landing ramp (m/s); None: the preset's (0.4, and paper 003's 0.1 for
-    ``kim_kaist``)."""
-    land_commit_height_m: Altitude | None = None
-    """Below this height above the pad a lost target no longer aborts the descent (m; block default 0.6,
-    raised to where the camera loses a pad its detector must see whole: ``visibility_commit_height_m``)."""
-    lost_timeout_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] | None = None
-    """Tracking coasts on the platform's prediction while the target is unseen this long, then searches
-    around the prediction (s; block default 3)."""
-    max_go_arounds: Annotated[int, Field(ge=0, le=1000)] | None = None
-    """Abort after this many go-arounds (block default 3)."""
-    time_budget_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] | None = None
-    """Abort when the mission has run this long without landing (s); None: no budget."""
-    # -- failsafes relative to the platform (None: the block's default, MissionConfig/GuidanceConfig;
-    # docs/scenarios.md lists them) --
-    takeoff_timeout_s: PositiveFloat | None = None
-    """Abort when the take-off has not reached its hover point after this long (s)."""
-    takeoff_clearance_m: PositiveFloat | None = None
-    """Below this height above the take-off point the take-off's tilt is limited (m)."""
-    takeoff_max_tilt_rad: Annotated[float, Field(gt=0, lt=math.pi / 2, allow_inf_nan=False)] | None = None
-    """The take-off's tilt limit near the ground (rad)."""
-    search_timeout_s: PositiveFloat | None = None
-    """The search around the predicted platform lasts this long before the whole area is explored (s)."""
-    search_speed_uncertainty_mps: NonNegFloat | None = None
-    """Growth of the search radius per second since the last sighting (m/s)."""
-    max_target_losses: Annotated[int, Field(ge=0)] | None = None
-    """Abort when the target is lost (TRACK -> SEARCH) more often than this."""
-    land_position_tolerance_m: PositiveFloat | None = None
-    """Descent gate: horizontal offset to the pad below which the landing starts (m)."""
-    land_velocity_tolerance_mps: PositiveFloat | None = None
-    """Descent gate: relative horizontal velocity below which the landing starts (m/s)."""
-    max_estimate_age_s: PositiveFloat | None = None
-    """Descent gate: the last measurement must be younger than this to start or continue descending (s)."""
-    land_max_position_std_m: PositiveFloat | None = None
-    """Descent gate (estimator consistency): the platform estimate's horizontal standard deviation must
-    be below this to start or continue descending (m)."""
-    land_hold_offset_m: PositiveFloat | None = None
-    """The descent holds its height while the offset exceeds this (m)."""
-    land_hold_rel_speed_mps: PositiveFloat | None = None
-    """The descent holds its height while the relative speed exceeds this (m/s)."""
-    land_abort_offset_m: PositiveFloat | None = None
-    """Go-around when the offset exceeds this above the commit height (m)."""
-    land_abort_rel_speed_mps: PositiveFloat | None = None
-    """Go-around when the relative speed exceeds this above the commit height (m/s)."""
-    land_lost_timeout_s: PositiveFloat | None = None
-    """Go-around when the target is unseen this long above the commit height (s)."""
-    land_abort_position_std_m: PositiveFloat | None = None
-    """Go-around when the estimate's horizontal standard deviation exceeds this (m)."""
-    land_hold_timeout_s: PositiveFloat | None = None
-    """Go-around when the descent has held its height this long (s)."""
-    land_commit_timeout_s: PositiveFloat | None = None
-    """Go-around when the descent has been below the commit height this long without a touchdown (s);
-    none: twice the descent's time from the commit height to the pad, plus 3 s."""
-    land_commit_speed_change_mps: PositiveFloat | None = None
-    """Go-around below the commit height (above a quarter of it) when the platform estimate's speed has
-    changed by more than this since the commit (m/s); default 0.5."""
-    land_commit_deck_velocity_error_mps: PositiveFloat | None = None
-    """Go-around when, below the commit height, the deck's velocity that the optical-flow module
-    (``optical_flow:``) measures under the feet differs from the platform estimate's by more than this
-    (m/s); default 0.5. Without a module nothing is measured and the check does not act."""
-    land_commit_ground_margin_m: PositiveFloat | None = None
-    """Go-around when, below the commit height, the range finder reads more than this beyond the height
-    over the estimated deck: the ground is below, not the deck (m). None: the preset's, else 0.2 m (every
-    packaged preset). A value above the range finder's span turns the check off."""
-    land_commit_max_tilt_rad: float | None = Field(default=None, gt=0.0, lt=1.5, allow_inf_nan=False)
-    """Hold the descent at the commit height until the vehicle's tilt (0.3 s low-pass) is below this
-    (rad), for at most 20 s, then go around: in strong, gusty wind the last second of the descent starts
-    in a lull, so that the gear does not meet the deck leaning past the contact limit. None: the
-    preset's (``alight`` waits), else off."""
-    land_tilt_min_spread_rad: NonNegFloat | None = None
-    """With ``land_commit_max_tilt_rad``: wait only while the tilt's standard deviation over the last
-    ~2 s is at least this (rad); a steady lean (a fast deck in calm air) is what the vehicle lands with
-    however long it waits. None: the preset's, else 0."""
-    land_steady_tilt_max_rad: float | None = Field(default=None, gt=0.0, lt=1.5, allow_inf_nan=False)
-    """With ``land_commit_max_tilt_rad``: a lean above this (rad) holds the commit even when steady (the
-    gear would touch the deck leaning that far). None: the preset's (``alight``: 0.42), else no limit."""
-    land_touchdown_max_tilt_rad: float | None = Field(default=None, gt=0.0, lt=1.5, allow_inf_nan=False)
-    """Limit the commanded tilt to this (rad) in a committed descent once the range finder reads less
-    than ``land_touchdown_clearance_m`` from the feet (PX4's ``MPC_TILTMAX_LND``): the gear meets the
-    deck level enough, and the vehicle drifts with a gust for the last fraction of a second. None: the
-    preset's (``alight``: 0.38), else no limit."""
-    land_touchdown_clearance_m: PositiveFloat | None = None
-    """The range from the feet (m) below which ``land_touchdown_max_tilt_rad`` applies. None: the
-    preset's, else 0.1 m."""
-    land_commit_max_platform_accel_mps2: PositiveFloat | None = None
-    """Hold the descent at the commit height while the platform estimate's horizontal acceleration (a
-    turn's centripetal ``v omega``) is above this (m/s^2), for at most 20 s, then go around: the last
-    ~0.5 s flown blind on the prediction is not started in a hard turn that may end under it (a
-    tractor's U-turn). None: the preset's (``alight`` waits above 1.5), else off."""
-    final_action: Literal["hover", "return", "land_in_place"] | None = None
-    """What an abort does: hover at the exploration altitude, return to the take-off point and land, or
-    land in place."""
-    touchdown: TouchdownSpec = Field(default_factory=TouchdownSpec)
-    """The onboard land detector."""
-    search_pattern: Literal["spiral", "lawnmower"] = "spiral"
-    """Coverage of the search area: an outward square spiral from the take-off point, or paper 000's
-    generic waypoint coverage as a lawnmower from the nearest corner."""
-    aim_camera: bool = True
-    """In take-off and exploration, move the reference upwind so that the body-fixed downward camera, not
-    the body, follows it: holding position in a side wind tilts the vehicle and its view moves
-    ``h tan(tilt)`` downwind (mission/README.md has the measurements). False flies the body on the
-    pattern, as papers 000 and 004 do."""
-    intercept: bool | None = None
-    """Fly to meet the platform's predicted path at the earliest point the vehicle can reach at its top
-    speed (from the airframe), instead of chasing it (planning/envelope.py); for a fast platform, with
-    ``platform.telemetry``. False: paper 000's tracking. None: the preset's (on for ``alight``), else
-    false."""
-    adaptive_horizon: bool | None = None
-    """Size the candidates' horizon from the distance to cover and the airframe's acceleration instead of
-    ``planner.horizon_min_s``/``horizon_max_s`` alone. None: the preset's (on for ``alight``), else
-    false."""
-    no_feasible: Literal["keep", "extend"] | None = None
-    """When no candidate is feasible: ``keep`` the plan being flown (paper 000), or ``extend`` the horizon
-    (doubling, three times) and then fly the longest candidate with the inputs clipped. None: the
-    preset's (``extend`` for ``alight``), else ``keep``."""
-    max_platform_speed_mps: NonNegFloat | None = None
-    """The fastest the platform may drive (m/s): the initial search area grows by speed x time since
-    take-off, and a search after a sighting is centred on the prediction. None: the preset's (``alight``
-    sets one), else the fixed search area."""
-    track_view_sigmas: NonNegFloat | None = None
-    """Track no lower than where the camera's narrower half-view spans this many standard deviations of
-    the platform estimate's position (a GNSS-only estimate is ~1 m off; at the usual tracking height the
-    pad is beside the view and the bias is never learned). None: the preset's (``alight`` sets one), else
-    off."""
-    scan_yaw_rate_rad_s: float | None = Field(default=None, ge=-3.0, le=3.0, allow_inf_nan=False)
-    """Turn the heading at this rate (rad/s) during take-off, exploration and search, so that the
-    downward camera's wide axis sweeps round (a platform passing beside the take-off point along the
-    view's narrow side is otherwise never seen); the heading reached is held in the other modes. None:
-    the preset's (``alight`` turns), else 0, the papers' fixed heading. Acts on every preset; with the
-    omnidirectional camera of ``kim_kaist`` it changes nothing the camera sees."""
-    weathervane_min_tilt_rad: float | None = Field(default=None, ge=0.0, lt=1.5, allow_inf_nan=False)
-    """Outside the scan, turn the heading (at most 0.5 rad/s) so that the camera's wider field of view
-    lies along the vehicle's steady lean against wind and drag (2 s low-pass of the side force, not the
-    lean spent on its own turns) once that lean exceeds this tilt (rad): holding against a strong wind,
-    or behind a fast platform, the point below the vehicle then stays inside the view. None: the
-    preset's (``alight`` turns), else off, the papers' fixed heading. Acts on every preset; with the
-    omnidirectional camera of ``kim_kaist``, whose view is round, it changes nothing the camera sees."""
-    takeoff_climb_speed_mps: PositiveFloat | None = None
-    """Peak vertical speed of the take-off climb (m/s), within the airframe's spare thrust (the climb's
-    peak acceleration at most half of ``(thrust_to_weight - 1) g``). A platform that drives past the
-    take-off point is seen during a fast climb and gone after a slow one. None: the preset's (5 m/s for
-    ``alight``), else half the cruise speed (2 m/s, paper 000's take-off)."""
+        ],
+        optional=False,
+        check=RangeFinderConfig,
+    )
+    OpticalFlowSpec = section_model(
+        "OpticalFlowSpec",
+        "A downward optical-flow module with its own ranger (ARK Flow / Holybro H-Flow class,"
+        " ``alight.sim.sensors.OpticalFlowConfig``): it measures the vehicle's velocity relative to the"
+        " surface under it, the deck in a landing. The pipeline reads it in the committed descent, where the"
+        " camera no longer sees the whole pad: a deck that brakes or speeds up under the last half metre"
+        " sends the vehicle around (``mission.land_commit_deck_velocity_error_mps``).",
+        [(OpticalFlowConfig, _fields_except(OpticalFlowConfig, ("origin_B",)))],
+        optional=False,
+        extra={"position_B_m": (FlowPosition | None, Field(default=None, description=_FLOW_POSITION_DOC))},
+        check=OpticalFlowConfig,
+    )
+    MissionSpec = section_model(
+        "MissionSpec",
+        "Overrides of the mission logic's and the guidance's parameters"
+        " (``alight.mission.state_machine.MissionConfig``, ``alight.mission.guidance.GuidanceConfig``,"
+        " which hold every default); None: the preset's value where its ``mission:`` section sets one,"
+        " else the block's default.",
+        [
+            (MissionConfig, _fields_except(MissionConfig, _RUNTIME_ONLY_MISSION)),
+            (GuidanceConfig, _SCENARIO_GUIDANCE),
+        ],
+        optional=True,
+        keep_defaults=_SCENARIO_ONLY_DEFAULTS,
+        extra={
+            "touchdown": (
+                TouchdownSpec,
+                Field(default_factory=TouchdownSpec, description="The onboard land detector."),
+            )
+        },
+    )
 
 
 PRESET_ONLY_MISSION_KEYS = ("coverage_fov_deg",)
@@ -924,6 +769,8 @@ def _format_error(source: str, err: ValidationError) -> str:
         # a whole-scenario check (the blocks) names its key in its message
         return f"{source}: {msg.removeprefix('Value error, ')}"
     where = where or "(top level)"
+    if first["type"] == "unexpected_keyword_argument":  # a settings dataclass's word for an unknown key
+        msg = "Extra inputs are not permitted"
     extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
     got = first.get("input")
     shown = "" if isinstance(got, dict | list) or got is None else f", got {got!r}"

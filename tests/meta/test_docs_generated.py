@@ -21,14 +21,13 @@ def test_generated_docs_are_up_to_date() -> None:
     assert run.returncode == 0, run.stderr
 
 
-def _model_keys(model: type[BaseModel], prefix: str = "") -> dict[str, object]:
-    import typing
+def _model_keys(model: type, prefix: str = "") -> dict[str, object]:
+    from alight.settings import is_section, section_fields
 
     out: dict[str, object] = {}
-    for name, f in model.model_fields.items():
+    for name, f in section_fields(model).items():
         key = prefix + name
-        subs = [a for a in (typing.get_args(f.annotation) or (f.annotation,)) if isinstance(a, type)]
-        sub = next((a for a in subs if issubclass(a, BaseModel)), None)
+        sub = is_section(f.annotation)
         out[key] = f.get_default(call_default_factory=True)
         if sub is not None:
             out.update(_model_keys(sub, key + "."))

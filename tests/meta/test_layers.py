@@ -20,6 +20,7 @@ _MODELS = {
     "rotation_kernels",
     "numerics",
     "blockspec",
+    "settings",
 }
 _STAGES = {"perception", "estimation", "planning", "control", "mission", "energy"}
 
@@ -28,6 +29,8 @@ ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     # what a block is (the stages' registries' entry type): a leaf below every stage
     "blockspec": set(),
+    # the settings dataclasses' pydantic configuration and the scenario sections derived from them
+    "settings": set(),
     "rotation_kernels": {"types"},
     "airframe": {"types", "errors"},
     # the packaged airframe files and their loader
@@ -44,9 +47,9 @@ ALLOWED: dict[str, set[str]] = {
     "control": {"types", "errors", "airframe", "rotation_kernels", "blockspec"},
     "mission": _MODELS | {"perception", "estimation", "planning", "control", "energy"},
     # the fault models take their scenario sections (for annotations only: no runtime import)
-    "sim": {"types", "errors", "airframe", "cameras", "pads", "rotation_kernels", "scenario"},
+    "sim": {"types", "errors", "airframe", "cameras", "pads", "rotation_kernels", "scenario", "settings"},
     # the scenario validates its blocks against the registry (alight.mission.blocks) and its airframe
-    "scenario": {"errors", "mission", "airframes"},
+    "scenario": {"errors", "mission", "airframes", "sim", "settings"},
     "evaluation": _MODELS | _STAGES | {"sim", "scenario", "__init__"},
     # the bridge compiles the pipeline's kernels (warmup) before it takes the link
     "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "warmup", "__init__"},

@@ -80,8 +80,8 @@ from alight.sim.sensors import (
     RangeFinder,
     RangeFinderConfig,
 )
-from alight.sim.telemetry import PlatformTelemetry, TelemetryConfig, TelemetryFix
-from alight.sim.textures import DistractorSpec, make_ground_texture
+from alight.sim.telemetry import PlatformTelemetry, TelemetryFix
+from alight.sim.textures import make_ground_texture
 from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import (
@@ -302,7 +302,7 @@ class World:
         self.faults.check_preset(s.preset, preset.uses_camera)
         self.telemetry: PlatformTelemetry | None = None
         if s.platform.telemetry is not None:
-            tel = TelemetryConfig(**s.platform.telemetry.model_dump())
+            tel = s.platform.telemetry
             self.telemetry = PlatformTelemetry(tel, np.random.default_rng(seeds[9]))
         self._tel_pending: deque[TelemetryFix] = deque()
         self.optical_flow: OpticalFlowSensor | None = None
@@ -325,7 +325,7 @@ class World:
                 raise RuntimeError(f"preset {preset.name} uses a camera but has no camera model or pad")
             cs = s.camera
             color = preset.color_camera if cs.color is None else cs.color
-            distractors = None if cs.distractors is None else DistractorSpec(**cs.distractors.model_dump())
+            distractors = cs.distractors
             ground = make_ground_texture(cs.ground, rng_render, color=color, distractors=distractors)
             self.renderer = Renderer(
                 preset.camera,

@@ -33,9 +33,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
+from pydantic import Field
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.mission.state_machine import Mission, MissionConfig, position_std_m
@@ -54,6 +56,7 @@ from alight.planning.exploration import (
     spiral_waypoints,
 )
 from alight.planning.min_jerk import MinJerkTrajectory
+from alight.settings import SETTINGS, FiniteFloat, NonNegFloat, PositiveFloat
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray, Mode, PlatformEstimate, Reference, wrap_angle
 
 if TYPE_CHECKING:
@@ -65,7 +68,7 @@ _AIMED_MODES = (Mode.TAKEOFF, Mode.EXPLORE)
 _SCAN_MODES = (Mode.TAKEOFF, Mode.EXPLORE, Mode.SEARCH)
 
 
-@dataclass(frozen=True, kw_only=True)
+@pydantic_dataclass(frozen=True, kw_only=True, config=SETTINGS)
 class GuidanceConfig:
     search_area: tuple[float, float, float, float] = (-20.0, 20.0, -20.0, 20.0)
     """x_min, x_max, y_min, y_max of the area to explore (m)."""
@@ -75,11 +78,11 @@ class GuidanceConfig:
     """Fraction of the camera footprint shared by neighbouring rows."""
     cruise_speed_mps: float = 4.0
     """Speed of point-to-point moves (take-off, abort, exploration legs) (m/s)."""
-    search_pattern: str = "spiral"
+    search_pattern: Literal["spiral", "lawnmower"] = "spiral"
     """``spiral`` (outward from the take-off point) or ``lawnmower`` (rows from the nearest corner)."""
     climb_speed_mps: float = 1.0
     """Vertical speed of a go-around (m/s)."""
-    takeoff_climb_speed_mps: float | None = None
+    takeoff_climb_speed_mps: PositiveFloat | None = None
     """Peak vertical speed of the take-off climb (m/s); None: half ``cruise_speed_mps``."""
     max_climb_accel_mps2: float = 0.5 * (DEFAULT_AIRFRAME.thrust_to_weight - 1.0) * GRAVITY_MPS2
     """Largest vertical acceleration the take-off climb is planned with (m/s^2): half the airframe's
@@ -90,13 +93,13 @@ class GuidanceConfig:
     yaw: float = 0.0
     """Heading at take-off (rad); held throughout unless ``scan_yaw_rate_rad_s`` or the weathervane
     (``weathervane_min_tilt_rad``) turns it."""
-    scan_yaw_rate_rad_s: float = 0.0
+    scan_yaw_rate_rad_s: Annotated[float, Field(ge=-3.0, le=3.0, allow_inf_nan=False)] = 0.0
     """Turn the heading at this rate (rad/s) while nothing is in view (take-off, exploration, search), so
     that the camera's wide axis sweeps round; the heading reached is held in every other mode. A
     downward camera's view is a rectangle (~90 x 64 deg: 12 x 7.5 m half-widths at 12 m), and a platform
     passing the take-off point 8 m away along the narrow side is never in view with a fixed heading. 0:
     the fixed heading of the papers."""
-    weathervane_min_tilt_rad: float | None = None
+    weathervane_min_tilt_rad: Annotated[float, Field(ge=0.0, lt=1.5, allow_inf_nan=False)] | None = None
     """Turn the heading, outside the scan, so that the camera's wider field of view lies along the
     vehicle's steady lean against wind and drag (the side force per unit mass, low-passed; not the lean
     spent on its own acceleration) once that lean exceeds this tilt (rad). A vehicle holding against 12 m/s of
@@ -105,13 +108,13 @@ class GuidanceConfig:
     in every gust, along the wide side (45 deg) it stays in. PX4's weathervane turns the nose into the
     wind for the same reason a fixed-wing does; here the camera's axis sets which way. None: off (the
     papers' fixed heading)."""
-    wide_view_axis_B_rad: float = 0.0
+    wide_view_axis_B_rad: FiniteFloat = 0.0
     """Direction of the camera's wider field of view in the body's xy plane (rad, from body x toward body
     y); the preset builder derives it from the camera model and its mount. Only its direction modulo pi
     matters."""
-    weathervane_yaw_rate_rad_s: float = 0.5
+    weathervane_yaw_rate_rad_s: PositiveFloat = 0.5
     """Largest turn rate of the weathervane (rad/s)."""
-    weathervane_time_constant_s: float = 2.0
+    weathervane_time_constant_s: PositiveFloat = 2.0
     """Low-pass time constant of the lean the weathervane follows (s): long enough that a manoeuvre or a
     gust does not swing the heading, short enough to follow a wind that turns."""
     search_expansions: int = 2
@@ -122,12 +125,12 @@ class GuidanceConfig:
     aim_camera: bool = True
     """Shift the take-off and exploration references upwind so that the downward camera's optical axis,
     not the body, follows them (see the module docstring)."""
-    aim_time_constant_s: float = 1.5
+    aim_time_constant_s: PositiveFloat = 1.5
     """Low-pass time constant of the tilt that sets the aiming offset (s): long enough to average out the
     vehicle's own manoeuvres, short enough to follow paper 004's 5.5 s gust steps."""
-    aim_max_tan_tilt: float = 1.0
+    aim_max_tan_tilt: NonNegFloat = 1.0
     """Largest tilt tangent the aiming offset uses (45 deg)."""
-    search_speed_uncertainty_mps: float = 1.0
+    search_speed_uncertainty_mps: NonNegFloat = 1.0
     """Growth of the search radius around the predicted platform per second since the last sighting
     (m/s): how fast the platform may drift from its prediction (a speed or heading change unseen)."""
     search_max_radius_m: float = 30.0
@@ -144,70 +147,34 @@ class GuidanceConfig:
     adaptive_horizon: bool = False
     """Size the candidates' horizon from the distance to cover and the airframe's acceleration (and the
     intercept time) instead of the planner's fixed ``[horizon_min_s, horizon_max_s]``."""
-    no_feasible: str = "keep"
+    no_feasible: Literal["keep", "extend"] = "keep"
     """When no candidate is feasible: ``keep`` the plan being flown (paper 000), or ``extend``: plan again
     with the horizon doubled, up to three times, and if still none fly the longest candidate with the
     controller clipping its inputs (planning/README.md)."""
-    max_tilt_rad: float = DEFAULT_AIRFRAME.max_tilt_rad
+    max_tilt_rad: Annotated[float, Field(gt=0, lt=math.pi / 2, allow_inf_nan=False)] = (
+        DEFAULT_AIRFRAME.max_tilt_rad
+    )
     """The airframe's tilt limit (rad): with the rotor drag, its top speed and horizontal acceleration."""
     rotor_drag_per_s: float = DEFAULT_AIRFRAME.rotor_drag[0]
     """The airframe's horizontal mass-normalised rotor drag (1/s)."""
-    speed_margin: float = 0.7
+    speed_margin: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = 0.7
     """Fraction of the airframe's top speed and horizontal acceleration the intercept is planned with,
     leaving the rest to the position loop."""
-    max_speed_mps: float = 15.0
+    max_speed_mps: PositiveFloat = 15.0
     """Cap on the intercept speed (m/s), whatever the airframe could do."""
-    track_view_sigmas: float | None = None
+    track_view_sigmas: NonNegFloat | None = None
     """Track no lower than the height at which the camera's narrower half-view spans this many standard
     deviations of the platform estimate's horizontal position: an estimate from the platform's GNSS
     alone is off by the receiver's bias (about 1 m per axis), and tracking it at the usual 2 m puts the
     pad beside a 1.2 m half-view, where the camera never sees it and the bias is never learned. Once the
     camera has the pad, the standard deviation is centimetres and this binds no more. None: off (the
     papers' tracking height rule alone)."""
-    max_platform_speed_mps: float | None = None
+    max_platform_speed_mps: NonNegFloat | None = None
     """The fastest the platform may drive (m/s): the initial search area grows by this much per second
     since take-off on every side; once the platform was seen, an exploration covers the square it can
     have reached since its last sighting (faster if it was seen faster), and the search spiral stops
     following a prediction whose uncertainty has outgrown that square. None: the fixed ``search_area``
     and a search that follows the prediction."""
-
-    def __post_init__(self) -> None:
-        if self.track_view_sigmas is not None and not (
-            math.isfinite(self.track_view_sigmas) and self.track_view_sigmas >= 0.0
-        ):
-            raise ValueError(
-                f"track_view_sigmas must be finite and >= 0 or None, got {self.track_view_sigmas}"
-            )
-        if not math.isfinite(self.scan_yaw_rate_rad_s):
-            raise ValueError(f"scan_yaw_rate_rad_s must be finite, got {self.scan_yaw_rate_rad_s}")
-        if self.weathervane_min_tilt_rad is not None and not (
-            0.0 <= self.weathervane_min_tilt_rad < math.pi / 2
-        ):
-            raise ValueError(
-                f"weathervane_min_tilt_rad must be in [0, pi/2) or None, got {self.weathervane_min_tilt_rad}"
-            )
-        if not math.isfinite(self.wide_view_axis_B_rad):
-            raise ValueError(f"wide_view_axis_B_rad must be finite, got {self.wide_view_axis_B_rad}")
-        for name in ("weathervane_yaw_rate_rad_s", "weathervane_time_constant_s"):
-            v = getattr(self, name)
-            if not (v > 0.0 and math.isfinite(v)):
-                raise ValueError(f"{name} must be positive and finite, got {v}")
-        if self.no_feasible not in ("keep", "extend"):
-            raise ValueError(f"no_feasible must be 'keep' or 'extend', got {self.no_feasible!r}")
-        if not 0.0 < self.speed_margin <= 1.0:
-            raise ValueError(f"speed_margin must be in (0, 1], got {self.speed_margin}")
-        if not 0.0 < self.max_tilt_rad < math.pi / 2:
-            raise ValueError(f"max_tilt_rad must be in (0, pi/2), got {self.max_tilt_rad}")
-        if not (self.max_speed_mps > 0.0 and math.isfinite(self.max_speed_mps)):
-            raise ValueError(f"max_speed_mps must be positive, got {self.max_speed_mps}")
-        if self.max_platform_speed_mps is not None and not (
-            self.max_platform_speed_mps >= 0.0 and math.isfinite(self.max_platform_speed_mps)
-        ):
-            raise ValueError(f"max_platform_speed_mps must be >= 0, got {self.max_platform_speed_mps}")
-        if not (self.aim_time_constant_s > 0.0 and math.isfinite(self.aim_time_constant_s)):
-            raise ValueError(f"aim_time_constant_s must be positive, got {self.aim_time_constant_s}")
-        if not (self.aim_max_tan_tilt >= 0.0 and math.isfinite(self.aim_max_tan_tilt)):
-            raise ValueError(f"aim_max_tan_tilt must be >= 0, got {self.aim_max_tan_tilt}")
 
 
 def _rest_to_rest(

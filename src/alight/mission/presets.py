@@ -34,6 +34,7 @@ from alight.pads import PADS, PadDesign, WholeMarkerPad
 from alight.perception import DETECTORS, GEOLOCATORS, Detector, DetectorContext
 from alight.perception.qos_detector import QosDetector
 from alight.planning import PLANNERS
+from alight.settings import default_of, sources
 from alight.types import GRAVITY_MPS2
 
 # The ego EKF's noise model: the data sheet of the vehicle's IMU and the VIO's reported accuracy. These
@@ -78,45 +79,6 @@ PRESETS: tuple[str, ...] = preset_names()
 """The packaged presets (``mission/preset_data/*.yaml``)."""
 
 
-_MISSION_OPTIONAL = (
-    "takeoff_altitude_m",
-    "explore_altitude_m",
-    "track_height_m",
-    "land_commit_height_m",
-    "lost_timeout_s",
-    "max_go_arounds",
-    "time_budget_s",
-    "takeoff_timeout_s",
-    "takeoff_clearance_m",
-    "takeoff_max_tilt_rad",
-    "search_timeout_s",
-    "max_target_losses",
-    "land_position_tolerance_m",
-    "land_velocity_tolerance_mps",
-    "max_estimate_age_s",
-    "land_max_position_std_m",
-    "land_hold_offset_m",
-    "land_hold_rel_speed_mps",
-    "land_abort_offset_m",
-    "land_abort_rel_speed_mps",
-    "land_lost_timeout_s",
-    "land_abort_position_std_m",
-    "land_hold_timeout_s",
-    "land_commit_timeout_s",
-    "land_commit_speed_change_mps",
-    "land_commit_max_tilt_rad",
-    "land_tilt_min_spread_rad",
-    "land_steady_tilt_max_rad",
-    "land_touchdown_max_tilt_rad",
-    "land_touchdown_clearance_m",
-    "land_commit_max_platform_accel_mps2",
-    "land_commit_ground_margin_m",
-    "land_commit_deck_velocity_error_mps",
-    "final_action",
-)
-"""Scenario mission keys whose None means the MissionConfig default."""
-
-
 VIEW_TILT_ALLOWANCE_RAD = math.radians(5.0)
 """How much of the camera's half field of view the descent's own tilt may take (rad), in
 :func:`visibility_commit_height_m`."""
@@ -143,18 +105,30 @@ def _mission_value(s: Any, eff: EffectiveBlocks, key: str) -> Any:
     return eff.mission.get(key) if value is None else value
 
 
+def _mission_settings(s: Any, eff: EffectiveBlocks, cls: type) -> dict[str, Any]:
+    """The fields of settings dataclass ``cls`` that the scenario's ``mission:`` section sets (its keys
+    derive from ``cls``: ``alight.settings.sources``), as they fly: the scenario's value, else the
+    preset's; a key both leave None is left out, so ``cls``'s own default applies."""
+    keys = sources(type(s.mission))
+    return {
+        field: value
+        for key, (owner, field) in keys.items()
+        if owner is cls and (value := _mission_value(s, eff, key)) is not None
+    }
+
+
 def _mission_config(
     s: Any, eff: EffectiveBlocks, hover_thrust_N: float, commit_floor_m: float | None = None
 ) -> MissionConfig:
     td = dict(eff.mission.get("touchdown") or {})
     td.update({k: v for k, v in s.mission.touchdown.model_dump().items() if v is not None})
-    keys = ("land_speed_mps", *_MISSION_OPTIONAL)
-    optional = {k: v for k in keys if (v := _mission_value(s, eff, k)) is not None}
-    if commit_floor_m is not None and "land_commit_height_m" not in optional:
+    given = _mission_settings(s, eff, MissionConfig)
+    if commit_floor_m is not None and "land_commit_height_m" not in given:
         # the camera cannot see the pad below this: commit no lower (a scenario's or preset's value stands)
-        default = MissionConfig.__dataclass_fields__["land_commit_height_m"].default
-        optional["land_commit_height_m"] = max(float(default), commit_floor_m)  # type: ignore[arg-type]
-    return MissionConfig(touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td), **optional)
+        given["land_commit_height_m"] = max(
+            float(default_of(MissionConfig, "land_commit_height_m")), commit_floor_m
+        )
+    return MissionConfig(touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td), **given)
 
 
 def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
@@ -235,26 +209,10 @@ def build_preset(scenario: Any, airframe: Airframe, rng: np.random.Generator) ->
             search_area=(area.x_min, area.x_max, area.y_min, area.y_max),
             camera_fov_rad=_coverage_fov_rad(s, eff, camera),
             wide_view_axis_B_rad=_wide_view_axis_B_rad(s, camera, mount),
-            search_pattern=s.mission.search_pattern,
-            aim_camera=s.mission.aim_camera,
-            max_platform_speed_mps=_mission_value(s, eff, "max_platform_speed_mps"),
             max_tilt_rad=airframe.max_tilt_rad,
             rotor_drag_per_s=airframe.rotor_drag[0],
             max_climb_accel_mps2=0.5 * (airframe.thrust_to_weight - 1.0) * GRAVITY_MPS2,
-            **{
-                k: v
-                for k in (
-                    "intercept",
-                    "adaptive_horizon",
-                    "no_feasible",
-                    "search_speed_uncertainty_mps",
-                    "takeoff_climb_speed_mps",
-                    "scan_yaw_rate_rad_s",
-                    "track_view_sigmas",
-                    "weathervane_min_tilt_rad",
-                )
-                if (v := _mission_value(s, eff, k)) is not None
-            },
+            **_mission_settings(s, eff, GuidanceConfig),
         ),
     )
     pipeline = Pipeline(

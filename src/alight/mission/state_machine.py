@@ -35,101 +35,108 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
 from alight.mission.touchdown_detector import TouchdownConfig
+from alight.settings import SETTINGS, Altitude, Duration, NonNegFloat, PositiveFloat
 from alight.types import EgoState, FloatArray, Mode, PlatformEstimate
 
 FinalAction = Literal["hover", "return", "land_in_place"]
 FINAL_ACTIONS: tuple[str, ...] = ("hover", "return", "land_in_place")
+Tilt = Annotated[float, Field(gt=0, lt=1.5, allow_inf_nan=False)]
+"""A tilt limit (rad), short of 1.5 (86 deg): a limit at or past the horizontal is a typo."""
 
 
-@dataclass(frozen=True, kw_only=True)
+@pydantic_dataclass(frozen=True, kw_only=True, config=SETTINGS)
 class MissionConfig:
     """Parameters of the mission logic. Heights are above the surface they refer to. These are the
     defaults of every preset (a scenario's ``mission:`` key left out or None keeps them)."""
 
-    takeoff_altitude_m: float | None = None
+    takeoff_altitude_m: Altitude | None = None
     """Hover height reached after take-off, above the take-off point (m); None: the exploration altitude.
     Climbing straight up first gives the camera its widest footprint over the take-off point within
     seconds, before the pattern leaves it: a moving platform crossing the area is most often near it early
     (the zamanakos_sdu straight-line misses of a 4 m take-off were all platforms that passed there while
     the vehicle was still low and flying its first leg the other way)."""
-    explore_altitude_m: float = 12.0
+    explore_altitude_m: Altitude = 12.0
     """Altitude of the coverage pattern (m)."""
-    track_height_m: float = 2.5
+    track_height_m: Altitude = 2.5
     """Height above the pad while tracking, before the descent (m)."""
-    land_speed_mps: float = 0.4
+    land_speed_mps: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = 0.4
     """Vertical speed of the descent (m/s)."""
     hover_tolerance_m: float = 0.3
     """Take-off is done when within this height of the hover point ... (m)."""
     hover_speed_tolerance_mps: float = 0.3
     """... and slower than this (m/s)."""
-    takeoff_timeout_s: float = 30.0
+    takeoff_timeout_s: PositiveFloat = 30.0
     """Take-off not done after this long (wind stronger than the vehicle, a motor short of thrust):
     abort (s)."""
-    takeoff_clearance_m: float = 0.3
+    takeoff_clearance_m: PositiveFloat = 0.3
     """During the take-off, below this height above the take-off point (m), the tilt is limited to
     ``takeoff_max_tilt_rad`` (as PX4 limits it during its take-off ramp): leaning into a wind or toward
     the climb's goal with the feet this close to the ground would put a foot on it (a foot 0.2 m out
     reaches 0.14 m down at 45 deg)."""
-    takeoff_max_tilt_rad: float = math.radians(12.0)
+    takeoff_max_tilt_rad: Annotated[float, Field(gt=0, lt=math.pi / 2, allow_inf_nan=False)] = math.radians(
+        12.0
+    )
     """The take-off's tilt limit near the ground (rad); 12 deg is PX4's ``MPC_TILTMAX_LND``."""
-    land_touchdown_max_tilt_rad: float | None = None
+    land_touchdown_max_tilt_rad: Tilt | None = None
     """In a committed descent, with the range finder reading less than ``land_touchdown_clearance_m``
     from the feet, the commanded tilt is limited to this (rad), as PX4's ``MPC_TILTMAX_LND`` limits it
     in its landings: the feet meet the deck no more tilted than the gear tolerates, and the vehicle drifts
     with a gust for that last fraction of a second instead of leaning into it. None: no limit (the
     papers' descent)."""
-    land_touchdown_clearance_m: float = 0.1
+    land_touchdown_clearance_m: PositiveFloat = 0.1
     """The range from the feet (m) below which ``land_touchdown_max_tilt_rad`` applies."""
-    land_position_tolerance_m: float = 0.25
+    land_position_tolerance_m: PositiveFloat = 0.25
     """Descent gate, horizontal offset to the pad: the landing starts below this (m) ..."""
-    land_velocity_tolerance_mps: float = 0.3
+    land_velocity_tolerance_mps: PositiveFloat = 0.3
     """Descent gate, relative horizontal velocity: ... and with the platform's velocity matched within
     this (m/s) ..."""
-    max_estimate_age_s: float = 0.6
+    max_estimate_age_s: PositiveFloat = 0.6
     """Descent gate, estimate age: ... and the last measurement younger than this (s) ..."""
-    land_max_position_std_m: float = 0.3
+    land_max_position_std_m: PositiveFloat = 0.3
     """Descent gate, estimator consistency: ... and the platform estimate's horizontal standard
     deviation, sqrt(trace of its xy covariance / 2), below this (m) ..."""
     land_dwell_s: float = 0.3
     """... all for at least this long (s)."""
-    land_hold_offset_m: float = 0.45
+    land_hold_offset_m: PositiveFloat = 0.45
     """During the descent, above the commit height, the vehicle holds its height while the offset to the
     pad exceeds this, or the relative velocity ``land_hold_rel_speed_mps``, or the estimate is older than
     ``max_estimate_age_s`` or less certain than ``land_max_position_std_m`` (m)."""
-    land_hold_rel_speed_mps: float = 0.6
+    land_hold_rel_speed_mps: PositiveFloat = 0.6
     """See ``land_hold_offset_m`` (m/s)."""
-    land_abort_offset_m: float = 0.6
+    land_abort_offset_m: PositiveFloat = 0.6
     """The descent is abandoned (go-around) when the horizontal offset to the pad exceeds this (m) ..."""
-    land_abort_rel_speed_mps: float = 1.2
+    land_abort_rel_speed_mps: PositiveFloat = 1.2
     """... or the relative horizontal velocity exceeds this (m/s) ..."""
-    land_lost_timeout_s: float = 1.0
+    land_lost_timeout_s: PositiveFloat = 1.0
     """... or the target is unseen this long (s) ..."""
-    land_abort_position_std_m: float = 0.8
+    land_abort_position_std_m: PositiveFloat = 0.8
     """... or the estimate's horizontal standard deviation exceeds this (m) ..."""
-    land_hold_timeout_s: float = 3.0
+    land_hold_timeout_s: PositiveFloat = 3.0
     """... or the descent has held its height this long (s)."""
-    land_commit_height_m: float = 0.6
+    land_commit_height_m: Altitude = 0.6
     """Below this height above the pad no gate stops the descent any more: it continues on the platform
     estimator's prediction (m). The camera sees the tag's cross down to about 0.3 m, but a moving pad may
     leave the view in the last half metre (a downward camera cannot see the whole pad from closer than
     about its own size: paper 000's reason for the model-based filter)."""
-    land_commit_timeout_s: float | None = None
+    land_commit_timeout_s: PositiveFloat | None = None
     """A descent that has been below the commit height this long without a touchdown goes around (s): it
     missed the pad (a platform that braked or drove off while the last half metre was flown on the
     prediction) and would otherwise hover beside it for ever. None: twice the time the descent takes from
     the commit height to the pad, plus 3 s for the land detector."""
-    land_commit_speed_change_mps: float = 0.5
+    land_commit_speed_change_mps: PositiveFloat = 0.5
     """A committed descent goes around when the platform estimate's speed has changed by more than this
     since the commit (m/s), while the vehicle is still above a quarter of the commit height: the platform
     braked or drove off under the last half metre (the estimator follows a speed change within a few
     measurements, and the camera may lose the pad right after), and the prediction the descent flies on
     no longer holds."""
-    land_commit_deck_velocity_error_mps: float | None = 0.5
+    land_commit_deck_velocity_error_mps: PositiveFloat | None = 0.5
     """Go-around when, in a committed descent, the deck's velocity that the optical-flow module measures
     under the feet (when the vehicle has one: the ego velocity less the measured slip) differs from the
     platform estimate's, which the descent flies on, by more than this (m/s): the deck braked or sped up
@@ -138,7 +145,7 @@ class MissionConfig:
     the slip: in 12 m/s wind or a tractor's U-turn the *vehicle* slips up to 1.1 m/s while it holds or
     catches up, and lands well; the deck itself does what the estimate says. None: off. Without a module
     the check has nothing to read."""
-    land_commit_ground_margin_m: float | None = 0.2
+    land_commit_ground_margin_m: PositiveFloat | None = 0.2
     """Go-around when, in a committed descent, the range finder (from the feet) reads more than this
     beyond the body's height over the estimated deck (m): the surface below is lower than the deck, the
     prediction has left the pad and the vehicle would land beside it (a platform that braked under the
@@ -147,7 +154,7 @@ class MissionConfig:
     other failsafes are: without it a platform braking under the committed descent crashed 3 of 50
     groundtruth and 3 of 50 falanga2017 missions of the fault campaign (examples/campaigns/faults.yaml,
     class brake_stop)."""
-    land_commit_max_tilt_rad: float | None = None
+    land_commit_max_tilt_rad: Tilt | None = None
     """The descent holds at the commit height until the vehicle's tilt, low-passed over
     ``land_tilt_time_constant_s``, is below this (rad), then commits; it waits at most
     ``land_tilt_wait_s``, then goes around. A vehicle holding against strong wind leans, and turbulence
@@ -155,14 +162,14 @@ class MissionConfig:
     tolerates 25 deg, so the last second of the descent is started in a lull, as a ship's helicopter
     waits for a quiescent deck. None: off (the papers' descent, which commits on its position gates
     alone)."""
-    land_steady_tilt_max_rad: float | None = None
+    land_steady_tilt_max_rad: Tilt | None = None
     """With ``land_commit_max_tilt_rad``: a lean above this (rad) holds the commit even when it is steady
     (its spread below ``land_tilt_min_spread_rad``). A steady lean is what the vehicle lands with however
     long it waits, which is acceptable up to what the gear tolerates and not above: the Matrice 100 holding
     12 m/s of wind leans 21-35 deg around a 28 deg mean on some seeds, a spread just under 5 deg, and
     committed into it touched down at 30-35 deg. Waiting there gives the circling deck time to turn
     downwind (less airspeed, less lean), or ends in a go-around. None: no limit."""
-    land_commit_max_platform_accel_mps2: float | None = None
+    land_commit_max_platform_accel_mps2: PositiveFloat | None = None
     """The descent holds at the commit height until the platform estimate's horizontal acceleration (the
     centripetal ``v_t omega`` of a turning unicycle) is at most this (m/s^2), then commits; committed, it
     pauses while the body is above half the commit height. Why: below the commit height the camera loses
@@ -171,109 +178,36 @@ class MissionConfig:
     A tractor's 4 m U-turn at 3 m/s (2.25 m/s^2) gave 1.0-1.4 m/s, past the contact judge's 0.75, in 4 of
     20 envelope missions at 5886e7b; a steady turn is predicted well, so only hard turns are waited out.
     It waits at most ``land_tilt_wait_s``, then goes around. None: off (the papers' descent)."""
-    land_tilt_wait_s: float = 20.0
+    land_tilt_wait_s: PositiveFloat = 20.0
     """Longest wait at the commit height for a lull in the tilt or the end of a hard turn before a
     go-around (s)."""
-    land_tilt_time_constant_s: float = 0.3
+    land_tilt_time_constant_s: PositiveFloat = 0.3
     """Low-pass time constant of the tilt the commit gate reads (s): long enough to ignore the
     controller's own jitter, short enough that a lull is still there when the feet reach the deck
     (about a second later at 0.4 m/s)."""
-    land_tilt_min_spread_rad: float = 0.0
+    land_tilt_min_spread_rad: NonNegFloat = 0.0
     """The commit gate waits only while the tilt's standard deviation over the last ~2 s is at least this
     (rad): a steady lean (rotor drag behind a fast deck in calm air, 17-24 deg at 12 m/s for the F450)
     is what the vehicle touches down with however long it waits, an unsteady one (gusts) can be waited
     out."""
-    lost_timeout_s: float = 3.0
+    lost_timeout_s: Duration = 3.0
     """Tracking coasts on the prediction while the target is unseen this long, then searches (s)."""
-    search_timeout_s: float = 20.0
+    search_timeout_s: PositiveFloat = 20.0
     """The search around the predicted platform lasts this long before the whole area is explored
     again (s)."""
-    max_target_losses: int = 5
+    max_target_losses: Annotated[int, Field(ge=0)] = 5
     """The mission aborts when the target is lost (TRACK -> SEARCH) more often than this."""
-    max_go_arounds: int = 3
+    max_go_arounds: Annotated[int, Field(ge=0, le=1000)] = 3
     """The mission aborts after more go-arounds than this."""
-    time_budget_s: float | None = None
+    time_budget_s: Duration | None = None
     """Abort when the mission has run this long without landing (s); None for no budget."""
     final_action: FinalAction = "hover"
     """What ABORT does: ``hover`` at the exploration altitude, ``return`` to the take-off point and land
     there, or ``land_in_place``."""
-    abort_hover_s: float = 2.0
+    abort_hover_s: PositiveFloat = 2.0
     """The ``hover`` final action is complete after holding the hold point steadily this long (s)."""
     touchdown: TouchdownConfig = field(default_factory=TouchdownConfig)
     """The onboard land detector's parameters."""
-
-    def __post_init__(self) -> None:
-        positive = (
-            "takeoff_altitude_m",
-            "explore_altitude_m",
-            "track_height_m",
-            "land_speed_mps",
-            "takeoff_timeout_s",
-            "land_position_tolerance_m",
-            "land_velocity_tolerance_mps",
-            "land_max_position_std_m",
-            "land_hold_offset_m",
-            "land_hold_rel_speed_mps",
-            "takeoff_clearance_m",
-            "takeoff_max_tilt_rad",
-            "land_touchdown_max_tilt_rad",
-            "land_touchdown_clearance_m",
-            "land_abort_offset_m",
-            "land_abort_rel_speed_mps",
-            "land_abort_position_std_m",
-            "land_hold_timeout_s",
-            "land_commit_timeout_s",
-            "land_commit_speed_change_mps",
-            "land_commit_ground_margin_m",
-            "land_commit_deck_velocity_error_mps",
-            "land_commit_max_tilt_rad",
-            "land_commit_max_platform_accel_mps2",
-            "land_steady_tilt_max_rad",
-            "land_tilt_wait_s",
-            "land_tilt_time_constant_s",
-            "lost_timeout_s",
-            "land_lost_timeout_s",
-            "search_timeout_s",
-            "abort_hover_s",
-        )
-        for name in positive:
-            value = getattr(self, name)
-            if value is None and name in (
-                "takeoff_altitude_m",
-                "land_commit_timeout_s",
-                "land_commit_ground_margin_m",
-                "land_commit_deck_velocity_error_mps",
-                "land_commit_max_tilt_rad",
-                "land_commit_max_platform_accel_mps2",
-                "land_steady_tilt_max_rad",
-                "land_touchdown_max_tilt_rad",
-            ):
-                continue
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"mission.{name} must be positive, got {value}")
-        spread = self.land_tilt_min_spread_rad
-        if not (math.isfinite(spread) and spread >= 0.0):
-            raise ValueError(f"mission.land_tilt_min_spread_rad must be >= 0 and finite, got {spread}")
-        steady = self.land_steady_tilt_max_rad
-        if steady is not None and steady >= math.pi / 2:
-            raise ValueError(f"mission.land_steady_tilt_max_rad must be < pi/2, got {steady:g}")
-        if self.land_commit_max_tilt_rad is not None and self.land_commit_max_tilt_rad >= math.pi / 2:
-            raise ValueError(
-                f"mission.land_commit_max_tilt_rad must be < pi/2, got {self.land_commit_max_tilt_rad:g}"
-            )
-        touchdown_tilt = self.land_touchdown_max_tilt_rad
-        if touchdown_tilt is not None and touchdown_tilt >= math.pi / 2:
-            raise ValueError(f"mission.land_touchdown_max_tilt_rad must be < pi/2, got {touchdown_tilt:g}")
-        if self.takeoff_max_tilt_rad >= math.pi / 2:
-            raise ValueError(
-                f"mission.takeoff_max_tilt_rad must be < pi/2, got {self.takeoff_max_tilt_rad:g}"
-            )
-        if self.max_go_arounds < 0 or self.max_target_losses < 0:
-            raise ValueError("mission.max_go_arounds and mission.max_target_losses must be >= 0")
-        if self.final_action not in FINAL_ACTIONS:
-            raise ValueError(
-                f"mission.final_action must be one of {FINAL_ACTIONS}, got {self.final_action!r}"
-            )
 
 
 _TILT_SPREAD_TIME_CONSTANT_S = 2.0

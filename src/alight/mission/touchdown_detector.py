@@ -31,12 +31,17 @@ inside the blind zone alone never stops the motors.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from enum import StrEnum
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
+from alight.settings import SETTINGS, PositiveFloat
 from alight.types import GRAVITY_MPS2, FloatArray
+
+Fraction = Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)]
 
 
 class TouchdownState(StrEnum):
@@ -45,72 +50,48 @@ class TouchdownState(StrEnum):
     LANDED = "landed"
 
 
-@dataclass(frozen=True, kw_only=True)
+@pydantic_dataclass(frozen=True, kw_only=True, config=SETTINGS)
 class TouchdownConfig:
     """Parameters of the land detector (defaults near PX4's ``LNDMC_*`` and ``MPC_THR_HOVER``)."""
 
-    hover_thrust_N: float = 9.81
+    hover_thrust_N: PositiveFloat = 9.81
     """Collective thrust that holds the vehicle in hover (N): the airframe's weight (PX4 learns it)."""
-    max_vertical_speed_mps: float = 0.25
+    max_vertical_speed_mps: PositiveFloat = 0.25
     """Ground contact needs |v_z| relative to the platform below this (m/s) (PX4 LNDMC_Z_VEL_MAX 0.25)."""
-    impact_mps2: float = 4.0
+    impact_mps2: PositiveFloat = 4.0
     """An impact: the accelerometer's specific force differs from 1 g by more than this (m/s^2)."""
-    impact_memory_s: float = 1.0
+    impact_memory_s: PositiveFloat = 1.0
     """An impact is evidence of contact for this long (s)."""
-    range_floor_m: float = 0.08
+    range_floor_m: PositiveFloat = 0.08
     """A valid range reading (from the feet) below this is "at the floor" (m)."""
-    held_thrust_fraction: float = 0.8
+    held_thrust_fraction: Fraction = 0.8
     """Also evidence of a surface: the commanded thrust below this fraction of hover with no vertical
     motion (PX4's low-throttle test: in the air that thrust would sink the vehicle at 2 m/s^2; something
     holds it up). It finds the touchdown whose impact was too soft to see (kim_kaist's 0.1 m/s descent:
     the descent reference keeps going below the deck, so the position loop lowers the thrust)."""
-    airborne_range_m: float = 0.5
+    airborne_range_m: PositiveFloat = 0.5
     """A valid range reading above this vetoes ground contact (m): the vehicle is plainly in the air,
     whatever the accelerometer says (a gust's jolt during a slow descent is not an impact)."""
-    ground_contact_s: float = 0.15
+    ground_contact_s: PositiveFloat = 0.15
     """Ground contact must hold this long before the thrust spools down (s)."""
-    spool_down_s: float = 0.5
+    spool_down_s: PositiveFloat = 0.5
     """Time for the thrust to ramp from the commanded value to zero on ground contact (s)."""
-    low_thrust_fraction: float = 0.3
+    low_thrust_fraction: Fraction = 0.3
     """Landed needs the commanded thrust below this fraction of the hover thrust ... """
-    landed_s: float = 0.3
+    landed_s: PositiveFloat = 0.3
     """... for this long, with ground contact kept (s) (PX4: maybe-landed then landed, 0.3 s each)."""
-    level_gain_per_s: float = 4.0
+    level_gain_per_s: PositiveFloat = 4.0
     """On ground contact the attitude command is replaced by one that levels the vehicle at this rate per
     radian of tilt (1/s): as PX4 removes the horizontal thrust on ground contact, a vehicle that kept
     leaning into a turning deck's acceleration would push itself over one pair of feet."""
-    level_to: str = "vertical"
+    level_to: Literal["vertical", "steady"] = "vertical"
     """What the attitude is levelled toward on ground contact: ``vertical`` (PX4), or ``steady``: the
     thrust direction held on average over the last ``steady_tilt_time_constant_s`` before contact. On a
     fast deck the vehicle leans into the rotor drag of its airspeed (20 deg at 12 m/s for the F450);
     levelling it then brakes it against the deck, and after a bounce it falls behind the pad. The steady
     tilt balances the steady forces (drag, wind) but not the manoeuvres."""
-    steady_tilt_time_constant_s: float = 1.0
+    steady_tilt_time_constant_s: PositiveFloat = 1.0
     """Low-pass time constant of the thrust direction for ``level_to: steady`` (s)."""
-
-    def __post_init__(self) -> None:
-        if self.level_to not in ("vertical", "steady"):
-            raise ValueError(f"touchdown.level_to must be 'vertical' or 'steady', got {self.level_to!r}")
-        for name in (
-            "hover_thrust_N",
-            "max_vertical_speed_mps",
-            "impact_mps2",
-            "impact_memory_s",
-            "range_floor_m",
-            "held_thrust_fraction",
-            "airborne_range_m",
-            "ground_contact_s",
-            "spool_down_s",
-            "low_thrust_fraction",
-            "landed_s",
-            "level_gain_per_s",
-            "steady_tilt_time_constant_s",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"touchdown.{name} must be positive and finite, got {v}")
-        if self.low_thrust_fraction >= 1.0 or self.held_thrust_fraction >= 1.0:
-            raise ValueError("touchdown.low_thrust_fraction and held_thrust_fraction must be below 1")
 
 
 class TouchdownDetector:

@@ -13,10 +13,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 from numba import njit
+from pydantic import Field
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
+from alight.settings import SETTINGS, NonNegFloat, PositiveFloat
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray, quat_to_rotmat
 
 from .platform import PlatformTruth
@@ -419,33 +423,32 @@ class Odometry:
 # --------------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, kw_only=True)
+@pydantic_dataclass(frozen=True, kw_only=True, config=SETTINGS)
 class RangeFinderConfig:
-    """A TeraRanger One-like time-of-flight distance sensor pointing along -z_B.
+    """A TeraRanger One-like time-of-flight distance sensor pointing along -z_B, measured from the
+    landing-gear feet (the scenario's ``rangefinder``).
 
     The real sensor measures 0.2 to 14 m, and so does this one by default: closer than ``min_range_m``
     (the blind zone) it reports ``-inf``, never a number, so the onboard land detector cannot rely on a
     reading of ~0 at touchdown (set 0 for an ideal sensor).
     """
 
-    rate_hz: float = 100.0
+    rate_hz: PositiveFloat = 100.0
     """Sample rate (Hz)."""
-    max_range_m: float = 14.0
-    """Longest range reported (m)."""
-    min_range_m: float = 0.2
-    """Shortest range reported (m): the blind zone."""
-    noise_std_m: float = 0.02
+    max_range_m: PositiveFloat = 14.0
+    """Beyond this it reports ``+inf`` (m)."""
+    min_range_m: NonNegFloat = 0.2
+    """Blind zone (m): closer than this the sensor reports ``-inf`` (ROS REP 117), as a real
+    TeraRanger One (0.2 m) does; 0 for an ideal sensor."""
+    noise_std_m: NonNegFloat = 0.02
     """White noise on the range (m)."""
     origin_B: tuple[float, float, float] = (0.0, 0.0, -0.10)
     """Sensor position in B (m): by default at the landing-gear feet under the body origin (the
     default airframe's gear height)."""
 
     def __post_init__(self) -> None:
-        _positive("rate_hz", self.rate_hz)
-        _positive("max_range_m", self.max_range_m)
-        _non_negative(self, ("min_range_m", "noise_std_m"))
         if self.min_range_m >= self.max_range_m:
-            raise ValueError("min_range_m must be below max_range_m")
+            raise ValueError("rangefinder.max_range_m must be above min_range_m")
 
 
 PAD_THICKNESS_M = 0.05
@@ -534,7 +537,11 @@ class RangeFinder:
         return max(r + noise, 0.0)
 
 
-@dataclass(frozen=True)
+SENSOR_TICK_HZ = 200.0
+"""The simulator's sensor tick (Hz), the IMU's rate: every other sensor samples at a whole divisor of it."""
+
+
+@pydantic_dataclass(frozen=True, config=SETTINGS)
 class OpticalFlowConfig:
     """A downward optical-flow module with its own short-range distance sensor, as PX4 flies them (ARK
     Flow, Holybro H-Flow: a PAW3902 or PMW3901 flow sensor beside a VL53L1X time-of-flight ranger), at the
@@ -542,25 +549,27 @@ class OpticalFlowConfig:
     under it, so over the deck it sees the vehicle's velocity *relative to the deck*, at tens of hertz and
     without the camera, which no longer sees the whole pad in the last half metre."""
 
-    rate_hz: float = 50.0
-    """Sample rate (Hz)."""
-    noise_rad_s: float = 0.05
+    rate_hz: Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)] = 50.0
+    """Sample rate (Hz); 200 Hz divided by a whole number (the simulator's sensor tick)."""
+    noise_rad_s: NonNegFloat = 0.05
     """White noise on each flow axis (rad/s)."""
-    min_range_m: float = 0.08
+    min_range_m: NonNegFloat = 0.08
     """Closest surface the flow sensor resolves (m; ARK Flow: 80 mm); closer, no sample."""
-    max_range_m: float = 4.0
+    max_range_m: PositiveFloat = 4.0
     """Farthest surface of its ranger (m; VL53L1X long mode); farther, no sample."""
-    range_noise_m: float = 0.01
+    range_noise_m: NonNegFloat = 0.01
     """White noise on the module's distance (m)."""
     origin_B: tuple[float, float, float] = (0.0, 0.0, -0.10)
     """Module position in B (m)."""
 
     def __post_init__(self) -> None:
-        _positive("rate_hz", self.rate_hz)
-        _positive("max_range_m", self.max_range_m)
-        _non_negative(self, ("min_range_m", "noise_rad_s", "range_noise_m"))
-        if self.min_range_m >= self.max_range_m:
-            raise ValueError("min_range_m must be below max_range_m")
+        if not self.max_range_m > self.min_range_m:
+            raise ValueError("optical_flow.max_range_m must be above min_range_m")
+        ticks = SENSOR_TICK_HZ / self.rate_hz
+        if abs(ticks - round(ticks)) > 1e-9:
+            raise ValueError(
+                f"optical_flow.rate_hz must divide 200 Hz (200, 100, 50, 40, 25, ...), got {self.rate_hz:g}"
+            )
 
 
 @dataclass(frozen=True)

@@ -19,40 +19,33 @@ The reported covariance is the receiver's own claim, ``noise_m^2 I``: a receiver
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
+from alight.settings import SETTINGS, NonNegFloat, PositiveFloat, Probability
 from alight.types import FloatArray
 
 
-@dataclass(frozen=True, kw_only=True)
+@pydantic_dataclass(frozen=True, kw_only=True, config=SETTINGS)
 class TelemetryConfig:
-    rate_hz: float = 10.0
-    """Fixes per second (Hz)."""
-    noise_m: float = 0.5
-    """Per-axis standard deviation of the white position noise (m)."""
-    velocity_noise_mps: float = 0.1
-    """Per-axis standard deviation of the white velocity noise (m/s)."""
-    latency_s: float = 0.2
-    """Delay from the fix to its arrival on the aircraft (s)."""
-    bias_m: float = 1.0
-    """Standard deviation of the constant position bias per horizontal axis (m); half of it vertically."""
-    dropout_prob: float = 0.0
-    """Probability that a fix is lost."""
+    """The platform's own GNSS fix, broadcast to the aircraft; the scenario's ``platform.telemetry``."""
 
-    def __post_init__(self) -> None:
-        for name in ("rate_hz",):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"platform.telemetry.{name} must be positive, got {v}")
-        for name in ("noise_m", "velocity_noise_mps", "latency_s", "bias_m"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"platform.telemetry.{name} must be >= 0, got {v}")
-        if not 0.0 <= self.dropout_prob <= 1.0:
-            raise ValueError(f"platform.telemetry.dropout_prob must be in [0, 1], got {self.dropout_prob}")
+    rate_hz: PositiveFloat = 10.0
+    """Fixes per second (Hz)."""
+    noise_m: NonNegFloat = 0.5
+    """Per-axis standard deviation of the white position noise (m)."""
+    velocity_noise_mps: NonNegFloat = 0.1
+    """Per-axis standard deviation of the white velocity noise (m/s)."""
+    latency_s: Annotated[float, Field(ge=0, le=5.0, allow_inf_nan=False)] = 0.2
+    """Delay from the fix to its arrival on the aircraft (s), at most 5."""
+    bias_m: NonNegFloat = 1.0
+    """Standard deviation of the constant position bias per horizontal axis, half of it vertically (m)."""
+    dropout_prob: Probability = 0.0
+    """Probability that a fix is lost."""
 
 
 @dataclass(frozen=True, slots=True)

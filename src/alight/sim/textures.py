@@ -21,13 +21,16 @@ import collections
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
 from alight.pads import PadDesign
+from alight.settings import SETTINGS
 from alight.types import FloatArray
 
 GROUND_KINDS = ("grass", "asphalt", "concrete")
@@ -37,48 +40,28 @@ DISTRACTOR_SHAPES = ("disc", "rect", "mixed")
 """Shapes :class:`DistractorSpec` knows (``mixed``: each one a disc or a rectangle, half and half)."""
 
 
-def _bgr_ok(c: object) -> bool:
-    return (
-        isinstance(c, tuple)
-        and len(c) == 3
-        and all(isinstance(x, (int, np.integer)) and 0 <= int(x) <= 255 for x in c)
-    )
+ColorLevel = Annotated[int, Field(ge=0, le=255)]
+"""One channel of an 8-bit colour."""
 
 
-@dataclass(frozen=True)
+@pydantic_dataclass(frozen=True, config=SETTINGS)
 class DistractorSpec:
-    """Coloured objects to paint on the ground: the false targets of a colour filter (red boxes, cars,
-    tarpaulins). Positions are uniform over the tile, drawn from the texture's generator."""
+    """Coloured objects to paint on the ground, per 20 m ground tile: the false targets of a colour
+    filter (red boxes, cars, tarpaulins). Positions are uniform over the tile, drawn from the texture's
+    generator."""
 
-    count: int = 8
+    count: Annotated[int, Field(ge=0, le=500)] = 8
     """Number of objects per tile."""
-    size_m: float = 0.8
+    size_m: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 0.8
     """Diameter of a disc, length of a rectangle's long side (m)."""
-    shape: str = "mixed"
+    shape: Literal["disc", "rect", "mixed"] = "mixed"
     """``disc``, ``rect`` or ``mixed`` (:data:`DISTRACTOR_SHAPES`)."""
-    aspect: float = 2.0
+    aspect: Annotated[float, Field(ge=1, le=100, allow_inf_nan=False)] = 2.0
     """A rectangle's long side over its short side (>= 1); its orientation is uniform."""
-    color_bgr: tuple[int, int, int] = (40, 40, 200)
+    color_bgr: tuple[ColorLevel, ColorLevel, ColorLevel] = (40, 40, 200)
     """Mean colour, BGR, 0-255 (default: the red of :class:`alight.pads.RedTarget`)."""
-    color_jitter_dn: float = 25.0
+    color_jitter_dn: Annotated[float, Field(ge=0, le=255, allow_inf_nan=False)] = 25.0
     """Each object's colour is the mean plus a uniform offset in +-this per channel (DN), clipped."""
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "color_bgr", tuple(int(c) for c in self.color_bgr))
-        if not (isinstance(self.count, (int, np.integer)) and int(self.count) >= 0):
-            raise ValueError(f"DistractorSpec.count must be an int >= 0, got {self.count!r}")
-        if not (math.isfinite(self.size_m) and self.size_m > 0):
-            raise ValueError(f"DistractorSpec.size_m must be finite and > 0, got {self.size_m}")
-        if self.shape not in DISTRACTOR_SHAPES:
-            raise ValueError(f"DistractorSpec.shape must be one of {DISTRACTOR_SHAPES}, got {self.shape!r}")
-        if not (math.isfinite(self.aspect) and self.aspect >= 1):
-            raise ValueError(f"DistractorSpec.aspect must be finite and >= 1, got {self.aspect}")
-        if not _bgr_ok(self.color_bgr):
-            raise ValueError(f"DistractorSpec.color_bgr must be 3 ints in [0, 255], got {self.color_bgr}")
-        if not (math.isfinite(self.color_jitter_dn) and 0 <= self.color_jitter_dn <= 255):
-            raise ValueError(
-                f"DistractorSpec.color_jitter_dn must be in [0, 255], got {self.color_jitter_dn}"
-            )
 
 
 @dataclass(frozen=True)
