@@ -10,29 +10,30 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "alight"
 
-_MODELS = {"types", "errors", "airframe", "airframes", "cameras", "pads", "rotation_kernels", "numerics"}
+_MODELS = {"types", "errors", "airframe", "airframes", "cameras", "pads", "numerics"}
 _STAGES = {"perception", "estimation", "planning", "control", "mission", "energy"}
 
 ALLOWED: dict[str, set[str]] = {
-    "types": set(),
+    # the messages take their frame helpers (and FloatArray) from the numerics
+    "types": {"numerics"},
     "errors": set(),
-    "rotation_kernels": {"types"},
     "airframe": {"types", "errors"},
     # the packaged airframe files and their loader
     "airframes": {"types", "errors", "airframe"},
-    # shared numerics (polynomial roots, DLT/RANSAC, run labelling): a leaf below every stage
-    "numerics": {"types", "errors"},
+    # shared numerics (rotations and angles, Cholesky, polynomial roots, DLT/RANSAC, run labelling): a
+    # leaf below every stage and below the messages
+    "numerics": {"errors"},
     "cameras": {"types", "errors", "numerics"},
     "pads": {"types", "errors"},
     # a leaf: the energy and QoS models and policies, no pipeline stage, no simulator
     "energy": {"types", "errors"},
     "perception": {"types", "errors", "cameras", "pads", "energy", "numerics"},
-    "estimation": {"types", "errors", "cameras", "rotation_kernels", "numerics"},
+    "estimation": {"types", "errors", "cameras", "numerics"},
     "planning": {"types", "errors", "airframe", "numerics"},
-    "control": {"types", "errors", "airframe", "rotation_kernels"},
+    "control": {"types", "errors", "airframe", "numerics"},
     "mission": _MODELS | {"perception", "estimation", "planning", "control", "energy"},
     # the fault models take their scenario sections (for annotations only: no runtime import)
-    "sim": {"types", "errors", "airframe", "cameras", "pads", "rotation_kernels", "scenario"},
+    "sim": {"types", "errors", "airframe", "cameras", "pads", "numerics", "scenario"},
     # the scenario validates its blocks against the registry (alight.mission.blocks) and its airframe
     "scenario": {"errors", "mission", "airframes"},
     "evaluation": _MODELS | _STAGES | {"sim", "scenario", "__init__"},
