@@ -17,16 +17,18 @@ ALLOWED: dict[str, set[str]] = {
     # the messages take their frame helpers (and FloatArray) from the numerics
     "types": {"numerics"},
     "errors": set(),
+    # the one YAML loader of the configuration files (scenarios, campaigns, airframes, device profiles)
+    "yaml_io": {"errors"},
     "airframe": {"types", "errors"},
     # the packaged airframe files and their loader
-    "airframes": {"types", "errors", "airframe"},
+    "airframes": {"types", "errors", "airframe", "yaml_io"},
     # shared numerics (rotations and angles, Cholesky, polynomial roots, DLT/RANSAC, run labelling): a
     # leaf below every stage and below the messages
     "numerics": {"errors"},
     "cameras": {"types", "errors", "numerics"},
     "pads": {"types", "errors"},
     # a leaf: the energy and QoS models and policies, no pipeline stage, no simulator
-    "energy": {"types", "errors"},
+    "energy": {"types", "errors", "yaml_io"},
     "perception": {"types", "errors", "cameras", "pads", "energy", "numerics"},
     "estimation": {"types", "errors", "cameras", "numerics"},
     "planning": {"types", "errors", "airframe", "numerics"},
@@ -35,7 +37,7 @@ ALLOWED: dict[str, set[str]] = {
     # the fault models take their scenario sections (for annotations only: no runtime import)
     "sim": {"types", "errors", "airframe", "cameras", "pads", "numerics", "scenario"},
     # the scenario validates its blocks against the registry (alight.mission.blocks) and its airframe
-    "scenario": {"errors", "mission", "airframes"},
+    "scenario": {"errors", "mission", "airframes", "yaml_io"},
     "evaluation": _MODELS | _STAGES | {"sim", "scenario", "__init__"},
     # the bridge compiles the pipeline's kernels (warmup) before it takes the link
     "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "warmup", "__init__"},
