@@ -39,10 +39,10 @@ def load_yaml_text(text: str, source: str, what: str = "scenario", *, allow_empt
     try:
         data = yaml.load(text, Loader=UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        line = getattr(mark, "line", None)
+        mark = getattr(err, "problem_mark", None)  # third-party: only marked PyYAML errors have one
+        line = getattr(mark, "line", None)  # third-party: a PyYAML mark
         where = f" (line {line + 1})" if line is not None else ""
-        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]  # third-party: a PyYAML error
         raise ConfigError(f"{source}: not valid YAML{where}: {problem}") from None
     except RecursionError:
         raise ConfigError(f"{source}: not valid YAML: nested too deeply") from None

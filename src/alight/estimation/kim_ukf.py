@@ -282,6 +282,44 @@ def _sigma(x: FloatArray, L: FloatArray, U: FloatArray, X: FloatArray) -> None:
 
 
 @njit(cache=True)
+def _kim_predict(
+    X: FloatArray,
+    dt: float,
+    u: FloatArray,
+    Wm: FloatArray,
+    Wc: FloatArray,
+    Q: FloatArray,
+    xm: FloatArray,
+    Pm: FloatArray,
+) -> None:  # pragma: no cover - numba
+    """ukf_predict with kim_transition (eq. 16) on the sigma points ``X`` (m, 7): the prior mean into
+    ``xm`` and covariance (symmetrised, plus ``Q``) into ``Pm``, both given as zeros."""
+    m, n = X.shape
+    Y = np.empty((m, n))
+    for i in range(m):
+        Y[i, 0] = X[i, 0] + dt * X[i, 2] + u[0]
+        Y[i, 1] = X[i, 1] + dt * X[i, 3] + u[1]
+        Y[i, 2] = X[i, 2] + u[2]
+        Y[i, 3] = X[i, 3] + u[3]
+        Y[i, 4] = u[4]
+        Y[i, 5] = u[5]
+        Y[i, 6] = u[6]
+    for i in range(m):
+        for j in range(n):
+            xm[j] += Wm[i] * Y[i, j]
+    for i in range(m):
+        for j in range(n):
+            dj = Wc[i] * (Y[i, j] - xm[j])
+            for k in range(n):
+                Pm[j, k] += dj * (Y[i, k] - xm[k])
+    for j in range(n):
+        for k in range(j, n):
+            s = 0.5 * (Pm[j, k] + Pm[k, j])
+            Pm[j, k] = s + Q[j, k]
+            Pm[k, j] = s + Q[k, j]
+
+
+@njit(cache=True)
 def kim_pixel_step(
     x: FloatArray,
     P: FloatArray,
@@ -320,31 +358,9 @@ def kim_pixel_step(
     if not cholesky(P, L):
         return STEP_FALLBACK
     _sigma(x, L, U, X)
-    # predict (ukf_predict with kim_transition)
-    Y = np.empty((m, n))
-    for i in range(m):
-        Y[i, 0] = X[i, 0] + dt * X[i, 2] + u[0]
-        Y[i, 1] = X[i, 1] + dt * X[i, 3] + u[1]
-        Y[i, 2] = X[i, 2] + u[2]
-        Y[i, 3] = X[i, 3] + u[3]
-        Y[i, 4] = u[4]
-        Y[i, 5] = u[5]
-        Y[i, 6] = u[6]
     xm = np.zeros(n)
-    for i in range(m):
-        for j in range(n):
-            xm[j] += Wm[i] * Y[i, j]
     Pm = np.zeros((n, n))
-    for i in range(m):
-        for j in range(n):
-            dj = Wc[i] * (Y[i, j] - xm[j])
-            for k in range(n):
-                Pm[j, k] += dj * (Y[i, k] - xm[k])
-    for j in range(n):
-        for k in range(j, n):
-            s = 0.5 * (Pm[j, k] + Pm[k, j])
-            Pm[j, k] = s + Q[j, k]
-            Pm[k, j] = s + Q[k, j]
+    _kim_predict(X, dt, u, Wm, Wc, Q, xm, Pm)
     # update (ukf_update with kim_fisheye_h)
     if not cholesky(Pm, L):
         return STEP_FALLBACK

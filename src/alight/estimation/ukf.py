@@ -153,35 +153,24 @@ def _dot_row(v: FloatArray, A: FloatArray, c: int) -> float:  # pragma: no cover
 
 
 @njit(cache=True)
-def ukf_correct(
+def _innovation_moments(
     X: FloatArray,
     Z: FloatArray,
     Wm: FloatArray,
     Wc: FloatArray,
     x: FloatArray,
-    P: FloatArray,
-    L: FloatArray,
-    z: FloatArray,
     R: FloatArray,
-    gate: float,
-    joseph: bool,
-    xo: FloatArray,
-    Po: FloatArray,
-    info: FloatArray,
-) -> int:  # pragma: no cover - numba
-    """The UKF measurement update (module docstring) from the sigma points ``X`` (m, n) of the prior
-    ``(x, P)``, their predicted measurements ``Z`` (m, k), the weights ``Wm``, ``Wc`` (m,), the measurement
-    ``z`` (k,) and its symmetric noise ``R`` (k, k). ``L`` is the lower Cholesky factor of ``P``, read by
-    the Joseph form only. The posterior goes to ``xo`` (n,), ``Po`` (n, n) and the NIS to ``info[0]``.
-    Returns ``CORRECT_OK``, ``CORRECT_GATED`` (NIS above ``gate``) or ``CORRECT_NOT_PD`` (``S``)."""
+    zh: FloatArray,
+    S: FloatArray,
+    Pxz: FloatArray,
+) -> None:  # pragma: no cover - numba
+    """The predicted measurement ``zh`` (k,), its covariance plus the noise, ``S`` (k, k), and the
+    cross-covariance ``Pxz`` (n, k) of the sigma points, accumulated into the given zeros."""
     m, n = X.shape
     k = Z.shape[1]
-    zh = np.zeros(k)
     for i in range(m):
         for a in range(k):
             zh[a] += Wm[i] * Z[i, a]
-    S = np.zeros((k, k))
-    Pxz = np.zeros((n, k))
     d = np.empty(k)
     for i in range(m):
         for a in range(k):
@@ -198,25 +187,22 @@ def ukf_correct(
         for b in range(a, k):
             S[a, b] += R[a, b]
             S[b, a] = S[a, b]
-    Si = np.empty((k, k))
-    if not _inverse_spd(S, Si):
-        return CORRECT_NOT_PD
-    r = np.empty(k)
-    for a in range(k):
-        r[a] = z[a] - zh[a]
-    nis = r[0] * _dot_row(r, Si, 0)
-    for a in range(1, k):
-        nis += r[a] * _dot_row(r, Si, a)
-    info[0] = nis
-    if not nis <= gate:
-        return CORRECT_GATED
-    K = np.empty((n, k))  # K = Pxz S^-1
-    for j in range(n):
-        _row_times(Pxz, j, Si, K[j])
-        s = x[j]
-        for a in range(k):
-            s += K[j, a] * r[a]
-        xo[j] = s
+
+
+@njit(cache=True)
+def _posterior_covariance(
+    P: FloatArray,
+    L: FloatArray,
+    K: FloatArray,
+    S: FloatArray,
+    R: FloatArray,
+    Pxz: FloatArray,
+    joseph: bool,
+    Po: FloatArray,
+) -> None:  # pragma: no cover - numba
+    """``Po`` (n, n): ``P - K S K^T`` or, ``joseph``, ``(I - K H) P (I - K H)^T + K R K^T`` with
+    ``H^T = P^-1 Pxz`` (``L`` the factor of ``P``); symmetrised."""
+    n, k = K.shape
     kr = np.empty(k)
     if joseph:
         Ht = np.empty((n, k))  # H^T = P^-1 Pxz, the statistical linearisation
@@ -240,6 +226,56 @@ def ukf_correct(
     for j in range(n):
         for c in range(n):
             Po[j, c] = 0.5 * (Pn[j, c] + Pn[c, j])
+
+
+@njit(cache=True)
+def ukf_correct(
+    X: FloatArray,
+    Z: FloatArray,
+    Wm: FloatArray,
+    Wc: FloatArray,
+    x: FloatArray,
+    P: FloatArray,
+    L: FloatArray,
+    z: FloatArray,
+    R: FloatArray,
+    gate: float,
+    joseph: bool,
+    xo: FloatArray,
+    Po: FloatArray,
+    info: FloatArray,
+) -> int:  # pragma: no cover - numba
+    """The UKF measurement update (module docstring) from the sigma points ``X`` (m, n) of the prior
+    ``(x, P)``, their predicted measurements ``Z`` (m, k), the weights ``Wm``, ``Wc`` (m,), the measurement
+    ``z`` (k,) and its symmetric noise ``R`` (k, k). ``L`` is the lower Cholesky factor of ``P``, read by
+    the Joseph form only. The posterior goes to ``xo`` (n,), ``Po`` (n, n) and the NIS to ``info[0]``.
+    Returns ``CORRECT_OK``, ``CORRECT_GATED`` (NIS above ``gate``) or ``CORRECT_NOT_PD`` (``S``)."""
+    n = X.shape[1]
+    k = Z.shape[1]
+    zh = np.zeros(k)
+    S = np.zeros((k, k))
+    Pxz = np.zeros((n, k))
+    _innovation_moments(X, Z, Wm, Wc, x, R, zh, S, Pxz)
+    Si = np.empty((k, k))
+    if not _inverse_spd(S, Si):
+        return CORRECT_NOT_PD
+    r = np.empty(k)
+    for a in range(k):
+        r[a] = z[a] - zh[a]
+    nis = r[0] * _dot_row(r, Si, 0)
+    for a in range(1, k):
+        nis += r[a] * _dot_row(r, Si, a)
+    info[0] = nis
+    if not nis <= gate:
+        return CORRECT_GATED
+    K = np.empty((n, k))  # K = Pxz S^-1
+    for j in range(n):
+        _row_times(Pxz, j, Si, K[j])
+        s = x[j]
+        for a in range(k):
+            s += K[j, a] * r[a]
+        xo[j] = s
+    _posterior_covariance(P, L, K, S, R, Pxz, joseph, Po)
     return CORRECT_OK
 
 
