@@ -12,7 +12,7 @@ turns every problem into one ``ConfigError`` line that says what is wrong and wh
 
 Files: an empty file (or one with only comments) is refused, since it is more often a truncated or wrong
 file than a request for every default (write ``{}`` for that); a key given twice in one mapping is refused
-(YAML keeps the last silently; :class:`UniqueKeyLoader`).
+(YAML keeps the last silently; :class:`alight.yaml_io.UniqueKeyLoader`).
 
 Physical bounds: every number has a generous physical limit, far beyond any vehicle, camera or weather we
 simulate but small enough that an absurd value (a typo, an extra three zeros, 1e9) is refused by name
@@ -30,7 +30,6 @@ from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from alight.errors import ConfigError
@@ -50,6 +49,7 @@ from alight.settings import (
 from alight.sim.sensors import OpticalFlowConfig, RangeFinderConfig
 from alight.sim.telemetry import TelemetryConfig
 from alight.sim.textures import DistractorSpec
+from alight.yaml_io import read_yaml_file as read_yaml_file
 
 MAX_DISTANCE_M = 1.0e4
 """Largest distance, length or coordinate (m): 10 km."""
@@ -788,54 +788,7 @@ def scenario_from_dict(data: Any, source: str = "scenario") -> Scenario:
         raise ConfigError(_format_error(source, err)) from None
 
 
-class UniqueKeyLoader(yaml.SafeLoader):  # type: ignore[misc,unused-ignore]  # PyYAML has no stubs here
-    """PyYAML's safe loader, refusing a key given twice in one mapping (the plain loader keeps the last
-    one silently, so ``speed_mps: 2`` ... ``speed_mps: 20`` would fly the second)."""
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-        seen: set[Any] = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)
-            try:
-                duplicate = key in seen
-            except TypeError:  # an unhashable key: the base class reports it
-                break
-            if duplicate:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key {key!r} given twice", key_node.start_mark
-                )
-            seen.add(key)
-        mapping: dict[Any, Any] = super().construct_mapping(node, deep=deep)
-        return mapping
-
-
-def load_yaml_text(text: str, source: str, what: str = "scenario") -> Any:
-    """Parse YAML with :class:`UniqueKeyLoader`; an empty document, bad YAML or a duplicate key becomes
-    one ``ConfigError`` line naming ``source`` (and the line where YAML says it)."""
-    try:
-        data = yaml.load(text, Loader=UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        line = getattr(mark, "line", None)
-        where = f" (line {line + 1})" if line is not None else ""
-        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
-        raise ConfigError(f"{source}: not valid YAML{where}: {problem}") from None
-    except RecursionError:
-        raise ConfigError(f"{source}: not valid YAML: nested too deeply") from None
-    if data is None:
-        raise ConfigError(f"{source}: the file is empty (write {{}} for a {what} with every default)")
-    return data
-
-
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario YAML file; any problem becomes one ``ConfigError`` line."""
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: no such scenario file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{p}: not valid YAML: not UTF-8 text ({err.reason})") from None
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read the scenario file: {err.strerror or err}") from None
-    return scenario_from_dict(load_yaml_text(text, str(p)), str(p))
+    data, _ = read_yaml_file(path, "scenario")
+    return scenario_from_dict(data, str(Path(path)))

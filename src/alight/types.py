@@ -17,9 +17,15 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+# The frame helpers live in alight.numerics.rotation (one implementation for kernels and Python); they
+# are re-exported here, where the messages that use them are.
+from alight.numerics import FloatArray as FloatArray
+from alight.numerics.rotation import quat_to_rotmat as quat_to_rotmat
+from alight.numerics.rotation import rot_z as rot_z
+from alight.numerics.rotation import rotmat_to_quat as rotmat_to_quat
+from alight.numerics.rotation import wrap_angle as wrap_angle
+from alight.numerics.rotation import yaw_of as yaw_of
 
 GRAVITY_MPS2 = 9.81
 """Magnitude of gravity; ``g_W = (0, 0, -GRAVITY_MPS2)`` in the z-up world."""
@@ -60,62 +66,6 @@ def _frozen_any(a: object, ndim: int, name: str) -> FloatArray:
         raise ValueError(f"{name} must have {ndim} dimensions, got shape {arr.shape}")
     arr.setflags(write=False)
     return arr
-
-
-# --------------------------------------------------------------------------------------------------
-# Rotation helpers. Hand-written (not scipy.spatial.transform) because they run at 200 Hz-1 kHz on
-# single vectors where SciPy's object construction costs ~20x the arithmetic.
-# --------------------------------------------------------------------------------------------------
-
-
-def quat_to_rotmat(q_xyzw: FloatArray) -> FloatArray:
-    """Rotation matrix of a unit quaternion ``(x, y, z, w)`` (normalised here)."""
-    # on Python floats: for one (4,) quaternion that is ~3x faster than the same arithmetic on arrays
-    x, y, z, w = q_xyzw.tolist() if isinstance(q_xyzw, np.ndarray) else (float(c) for c in q_xyzw)
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def rotmat_to_quat(R: FloatArray) -> FloatArray:
-    """Unit quaternion ``(x, y, z, w)`` with ``w >= 0`` of a rotation matrix (Shepperd's method)."""
-    m = np.asarray(R, dtype=np.float64)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        q = np.array([0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s])
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        q = np.array([(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s])
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        q = np.array([(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s])
-    q /= np.linalg.norm(q)
-    return q if q[3] >= 0 else -q
-
-
-def yaw_of(R_WB: FloatArray) -> float:
-    """Heading of the body x axis projected on the world xy plane (rad, from world x, counter-clockwise)."""
-    return math.atan2(float(R_WB[1, 0]), float(R_WB[0, 0]))
-
-
-def rot_z(yaw: float) -> FloatArray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def wrap_angle(a: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 # --------------------------------------------------------------------------------------------------

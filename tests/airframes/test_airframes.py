@@ -124,7 +124,7 @@ def test_unknown_name_and_missing_file() -> None:
         ConfigError, match=r"unknown airframe 'f451': expected one of \['f450', 'matrice100'\]"
     ):
         load_airframe("f451")
-    with pytest.raises(ConfigError, match="no such file"):
+    with pytest.raises(ConfigError, match="no such airframe file"):
         load_airframe("nowhere/af.yaml")
 
 

@@ -19,13 +19,10 @@ from alight.estimation.ego_ekf import (
     ego_step,
     odometry_jacobian,
     odometry_residual,
-    quat_exp,
-    quat_log,
-    quat_mul,
-    quat_to_R,
     so3_left_jacobian_inv,
     so3_right_jacobian,
 )
+from alight.numerics.rotation import quat_exp, quat_log, quat_mul, quat_to_R
 from alight.types import GRAVITY_MPS2, quat_to_rotmat
 
 G_W = np.array([0.0, 0.0, -GRAVITY_MPS2])

@@ -17,7 +17,6 @@ _MODELS = {
     "airframes",
     "cameras",
     "pads",
-    "rotation_kernels",
     "numerics",
     "blockspec",
     "settings",
@@ -25,31 +24,34 @@ _MODELS = {
 _STAGES = {"perception", "estimation", "planning", "control", "mission", "energy"}
 
 ALLOWED: dict[str, set[str]] = {
-    "types": set(),
+    # the messages take their frame helpers (and FloatArray) from the numerics
+    "types": {"numerics"},
     "errors": set(),
     # what a block is (the stages' registries' entry type): a leaf below every stage
     "blockspec": set(),
     # the settings dataclasses' pydantic configuration and the scenario sections derived from them
     "settings": set(),
-    "rotation_kernels": {"types"},
+    # the one YAML loader of the configuration files (scenarios, campaigns, airframes, device profiles)
+    "yaml_io": {"errors"},
     "airframe": {"types", "errors"},
     # the packaged airframe files and their loader
-    "airframes": {"types", "errors", "airframe"},
-    # shared numerics (polynomial roots, DLT/RANSAC, run labelling): a leaf below every stage
-    "numerics": {"types", "errors"},
+    "airframes": {"types", "errors", "airframe", "yaml_io"},
+    # shared numerics (rotations and angles, Cholesky, polynomial roots, DLT/RANSAC, run labelling): a
+    # leaf below every stage and below the messages
+    "numerics": {"errors"},
     "cameras": {"types", "errors", "numerics", "blockspec"},
     "pads": {"types", "errors", "blockspec"},
     # a leaf: the energy and QoS models and policies, no pipeline stage, no simulator
-    "energy": {"types", "errors"},
+    "energy": {"types", "errors", "yaml_io"},
     "perception": {"types", "errors", "cameras", "pads", "energy", "numerics", "blockspec"},
-    "estimation": {"types", "errors", "cameras", "rotation_kernels", "numerics", "blockspec"},
+    "estimation": {"types", "errors", "cameras", "numerics", "blockspec"},
     "planning": {"types", "errors", "airframe", "numerics", "blockspec"},
-    "control": {"types", "errors", "airframe", "rotation_kernels", "blockspec"},
+    "control": {"types", "errors", "airframe", "numerics", "blockspec"},
     "mission": _MODELS | {"perception", "estimation", "planning", "control", "energy"},
     # the fault models take their scenario sections (for annotations only: no runtime import)
-    "sim": {"types", "errors", "airframe", "cameras", "pads", "rotation_kernels", "scenario", "settings"},
+    "sim": {"types", "errors", "airframe", "cameras", "pads", "numerics", "scenario", "settings"},
     # the scenario validates its blocks against the registry (alight.mission.blocks) and its airframe
-    "scenario": {"errors", "mission", "airframes", "sim", "settings"},
+    "scenario": {"errors", "mission", "airframes", "sim", "settings", "yaml_io"},
     "evaluation": _MODELS | _STAGES | {"sim", "scenario", "__init__"},
     # the bridge compiles the pipeline's kernels (warmup) before it takes the link
     "interfaces": _MODELS | _STAGES | {"sim", "scenario", "evaluation", "warmup", "__init__"},

@@ -33,12 +33,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from alight.airframe import Airframe
 from alight.errors import ConfigError
 from alight.types import GRAVITY_MPS2
+from alight.yaml_io import read_yaml_file
 
 __all__ = ["MIN_THRUST_TO_WEIGHT", "UNITS", "load_airframe", "packaged_airframes", "read_airframe_file"]
 
@@ -146,12 +146,7 @@ def _format(source: str, err: ValidationError) -> str:
 def read_airframe_file(path: str | Path) -> AirframeFile:
     """Read and validate an airframe YAML file (the checked contents, before building the Airframe)."""
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"airframe {p}: no such file")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as err:
-        raise ConfigError(f"airframe {p}: not valid YAML: {str(err).splitlines()[0]}") from None
+    data, _ = read_yaml_file(p, "airframe", source=f"airframe {p}", allow_empty=True)
     if not isinstance(data, dict):
         raise ConfigError(f"airframe {p}: expected a mapping of airframe keys, got {type(data).__name__}")
     try:

@@ -40,7 +40,7 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 
 from alight.campaign.seeds import mission_seed, sample_rng
 from alight.errors import ConfigError
-from alight.scenario import Scenario, load_scenario, load_yaml_text, scenario_from_dict
+from alight.scenario import Scenario, load_scenario, read_yaml_file, scenario_from_dict
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -501,15 +501,7 @@ def campaign_from_dict(
 def read_campaign_spec(path: str | Path) -> tuple[CampaignSpec, Any, str]:
     """The campaign file's validated spec, its data and text, without expanding it; ``ConfigError``."""
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: no such campaign file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{p}: not valid YAML: not UTF-8 text ({err.reason})") from None
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read the campaign file: {err.strerror or err}") from None
-    data = load_yaml_text(text, str(p), "campaign")
+    data, text = read_yaml_file(p, "campaign")
     if not isinstance(data, dict):
         raise ConfigError(f"{p}: expected a mapping of campaign keys, got {type(data).__name__}")
     try:

@@ -38,7 +38,7 @@ from numba import njit, types
 
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
 from alight.control.rate import tilt_time_constant_s
-from alight.rotation_kernels import quat_to_R
+from alight.numerics.rotation import R_to_quat, quat_to_R
 from alight.types import GRAVITY_MPS2, Command, EgoState, FloatArray, Reference
 
 __all__ = [
@@ -81,40 +81,6 @@ _FP_MAX_IT = 50  # contraction ~d|v|/c: ~10 iterations at 5 m/s, ~30 at 12 m/s
 # --------------------------------------------------------------------------------------------------
 # numba kernels
 # --------------------------------------------------------------------------------------------------
-
-
-@njit(cache=True)
-def _rotmat_to_quat(m: FloatArray, q: FloatArray) -> None:
-    """Shepperd's method; writes (x, y, z, w) with w >= 0."""
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0.0:
-        s = math.sqrt(tr + 1.0) * 2.0
-        q[0] = (m[2, 1] - m[1, 2]) / s
-        q[1] = (m[0, 2] - m[2, 0]) / s
-        q[2] = (m[1, 0] - m[0, 1]) / s
-        q[3] = 0.25 * s
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2.0
-        q[0] = 0.25 * s
-        q[1] = (m[0, 1] + m[1, 0]) / s
-        q[2] = (m[0, 2] + m[2, 0]) / s
-        q[3] = (m[2, 1] - m[1, 2]) / s
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2.0
-        q[0] = (m[0, 1] + m[1, 0]) / s
-        q[1] = 0.25 * s
-        q[2] = (m[1, 2] + m[2, 1]) / s
-        q[3] = (m[0, 2] - m[2, 0]) / s
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2.0
-        q[0] = (m[0, 2] + m[2, 0]) / s
-        q[1] = (m[1, 2] + m[2, 1]) / s
-        q[2] = 0.25 * s
-        q[3] = (m[1, 0] - m[0, 1]) / s
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    sgn = 1.0 if q[3] >= 0.0 else -1.0
-    for k in range(4):
-        q[k] = sgn * q[k] / n
 
 
 @njit(cache=True)
@@ -346,7 +312,7 @@ def high_level_kernel(
         for s in range(3):
             Re[r, s] = R[0, r] * R_des[0, s] + R[1, r] * R_des[1, s] + R[2, r] * R_des[2, s]
     qe = np.empty(4)
-    _rotmat_to_quat(Re, qe)  # w >= 0: the shorter way round
+    R_to_quat(Re, qe)  # w >= 0: the shorter way round
     aw = math.sqrt(qe[3] * qe[3] + qe[2] * qe[2])
     if aw > 1e-9:
         tx = (qe[3] * qe[0] - qe[2] * qe[1]) / aw
@@ -389,7 +355,7 @@ def high_level_kernel(
         out[1 + k] = wk
     out[0] = thrust
     qd = np.empty(4)
-    _rotmat_to_quat(R_des, qd)
+    R_to_quat(R_des, qd)
     for i in range(4):  # by element: numba compiles a slice assignment's error message (~1 s)
         out[4 + i] = qd[i]
     return ok

@@ -100,7 +100,7 @@ from numba import njit, types
 from alight.airframe import Airframe
 from alight.control.high_level import HL_DRAG, HL_MASS, HighLevelController, HighLevelGains
 from alight.control.rate import tilt_time_constant_s
-from alight.rotation_kernels import quat_to_R
+from alight.numerics.rotation import quat_to_R
 from alight.types import GRAVITY_MPS2, Command, EgoState, FloatArray, Reference
 
 __all__ = [

@@ -40,9 +40,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from alight.errors import ConfigError
+from alight.yaml_io import load_yaml_text
 
 HOST_MIPS_1T = 2870.0
 """Single-thread 7-Zip rating per CPU second (MIPS, 7-Zip's "R/U" total) of the machine that measured the
@@ -185,11 +184,7 @@ class DeviceProfile:
         profile file by path. Raises :class:`alight.errors.ConfigError` for an unknown name or a bad
         file."""
         text, where = _read_profile(name_or_path)
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as e:
-            raise ConfigError(f"{where}: not valid YAML ({e})") from None
-        return cls.from_dict(data, where)
+        return cls.from_dict(load_yaml_text(text, where, "device profile", allow_empty=True), where)
 
 
 def _read_profile(name_or_path: str | Path) -> tuple[str, str]:

@@ -68,6 +68,7 @@ from scipy.interpolate import RegularGridInterpolator
 from alight.energy.compute import DeviceProfile
 from alight.errors import ConfigError
 from alight.types import FloatArray, Mode
+from alight.yaml_io import load_yaml_text
 
 REFERENCE_RATE_HZ = 30.0
 """Rate at which the rate factor of :attr:`QosSetting.quality` is 1 (Hz)."""
@@ -281,11 +282,7 @@ class QosMeasurements:
             if not p.is_file():
                 raise ConfigError(f"QoS measurements file not found: {p}")
             text, where = p.read_text(encoding="utf-8"), str(p)
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as e:
-            raise ConfigError(f"{where}: not valid YAML ({e})") from None
-        return cls.from_dict(data, where)
+        return cls.from_dict(load_yaml_text(text, where, "QoS measurements file", allow_empty=True), where)
 
     def save(self, path: str | Path, header: str = "") -> None:
         """Write the file (YAML), with ``header`` as leading comment lines."""

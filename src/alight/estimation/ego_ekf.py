@@ -42,7 +42,8 @@ from alight.estimation.guards import (
     MAX_SPEED_MPS,
     check_time,
 )
-from alight.rotation_kernels import quat_to_R
+from alight.numerics.linalg import chol_solve
+from alight.numerics.rotation import quat_exp, quat_log, quat_mul, quat_to_R
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray
 
 # status codes shared by the kernels of this subpackage
@@ -52,44 +53,9 @@ NOT_POSITIVE_DEFINITE = 2
 
 # --------------------------------------------------------------------------------------------------
 # Small linear algebra and SO(3) helpers (numba). Hand-written loops: the matrices are at most 15x15,
-# where a BLAS call costs more than the arithmetic.
+# where a BLAS call costs more than the arithmetic. The Cholesky solve and the quaternion product,
+# exponential and logarithm are alight.numerics'.
 # --------------------------------------------------------------------------------------------------
-
-
-@njit(cache=True)
-def chol_solve(S: FloatArray, B: FloatArray, L: FloatArray, X: FloatArray) -> bool:
-    """Solve ``S X = B`` for a symmetric positive-definite ``S`` (m, m) and ``B`` (m, k) by Cholesky.
-
-    ``L`` (m, m) is scratch for the factor. Returns False (and leaves ``X`` undefined) when ``S`` is not
-    positive definite or not finite, so callers can report it instead of producing NaNs.
-    """
-    m = S.shape[0]
-    k = B.shape[1]
-    for i in range(m):
-        for j in range(i + 1):
-            s = S[i, j]
-            for q in range(j):
-                s -= L[i, q] * L[j, q]
-            if i == j:
-                if not (s > 0.0):  # also catches NaN
-                    return False
-                L[i, i] = math.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-    for c in range(k):
-        # forward: L y = b
-        for i in range(m):
-            s = B[i, c]
-            for q in range(i):
-                s -= L[i, q] * X[q, c]
-            X[i, c] = s / L[i, i]
-        # backward: L^T x = y
-        for i in range(m - 1, -1, -1):
-            s = X[i, c]
-            for q in range(i + 1, m):
-                s -= L[q, i] * X[q, c]
-            X[i, c] = s / L[i, i]
-    return True
 
 
 @njit(cache=True)
@@ -140,49 +106,6 @@ def _mv(A: FloatArray, v: FloatArray, out: FloatArray) -> None:
         for q in range(k):
             s += A[i, q] * v[q]
         out[i] = s
-
-
-@njit(cache=True)
-def quat_mul(a: FloatArray, b: FloatArray, out: FloatArray) -> None:
-    """Hamilton product ``a * b`` of (x, y, z, w) quaternions (``out`` may not alias the inputs)."""
-    ax, ay, az, aw = a[0], a[1], a[2], a[3]
-    bx, by, bz, bw = b[0], b[1], b[2], b[3]
-    out[0] = aw * bx + ax * bw + ay * bz - az * by
-    out[1] = aw * by - ax * bz + ay * bw + az * bx
-    out[2] = aw * bz + ax * by - ay * bx + az * bw
-    out[3] = aw * bw - ax * bx - ay * by - az * bz
-
-
-@njit(cache=True)
-def quat_exp(phi: FloatArray, out: FloatArray) -> None:
-    """Unit quaternion of the rotation vector ``phi`` (rad), i.e. ``Exp(phi)``."""
-    th = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
-    if th < 1e-8:
-        s = 0.5 - th * th / 48.0  # sin(th/2)/th
-        c = 1.0 - th * th / 8.0
-    else:
-        s = math.sin(0.5 * th) / th
-        c = math.cos(0.5 * th)
-    out[0] = s * phi[0]
-    out[1] = s * phi[1]
-    out[2] = s * phi[2]
-    out[3] = c
-
-
-@njit(cache=True)
-def quat_log(q: FloatArray, out: FloatArray) -> None:
-    """Rotation vector (rad) of a unit quaternion, i.e. ``Log(q)``, angle in [0, pi]."""
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    if w < 0.0:  # q and -q are the same rotation; take the short way
-        x, y, z, w = -x, -y, -z, -w
-    n = math.sqrt(x * x + y * y + z * z)
-    if n < 1e-8:
-        k = 2.0 / w  # 2 atan2(n, w) / n for small n
-    else:
-        k = 2.0 * math.atan2(n, w) / n
-    out[0] = k * x
-    out[1] = k * y
-    out[2] = k * z
 
 
 @njit(cache=True)

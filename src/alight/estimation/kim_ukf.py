@@ -72,7 +72,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any, Protocol, cast
 
 import numpy as np
 from numba import njit
@@ -97,17 +97,22 @@ from alight.estimation.sigma_points import (
 )
 from alight.estimation.turn_rate import TurnRateConfig, TurnRateTracker, turn_predict
 from alight.estimation.ukf import (
+    CORRECT_GATED,
+    CORRECT_NOT_PD,
+    CORRECT_OK,
     COVARIANCE_UPDATES,
     GATED,
     INVALID,
     NOT_POSITIVE_DEFINITE,
     OK,
     UpdateResult,
+    ukf_correct,
     ukf_predict,
     ukf_update,
     unscented_transform,
 )
-from alight.types import FloatArray, PlatformEstimate, PlatformMeasurement, quat_to_rotmat
+from alight.numerics.linalg import cholesky
+from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
 
 N_STATE = 7
 _MIN_ATT_STD = 1e-9
@@ -255,33 +260,13 @@ def _world_h(X: FloatArray, offset: FloatArray) -> FloatArray:
 
 
 # --------------------------------------------------------------------------------------------------
-# One predict + pixel update compiled (the same arithmetic as ukf_predict + ukf_update with the models
-# above; a test checks they agree to 1e-10): ~30x less Python overhead per camera frame
+# One predict + pixel update compiled: ukf_predict with the models above written as loops (a test checks
+# it agrees with the generic path to 1e-10), then the generic filter's own update kernel, ukf_correct:
+# ~30x less Python overhead per camera frame
 # --------------------------------------------------------------------------------------------------
 
-STEP_OK, STEP_GATED, STEP_INVALID, STEP_NOT_PD, STEP_FALLBACK = 0, 1, 2, 3, 4
-
-
-@njit(cache=True)
-def _cholesky(A: FloatArray, L: FloatArray) -> bool:
-    """Lower Cholesky factor of a small symmetric matrix into ``L``; False when not positive definite."""
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(n):
-            L[i, j] = 0.0
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            return False
-        L[j, j] = math.sqrt(s)
-        for i in range(j + 1, n):
-            s = A[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / L[j, j]
-    return True
+STEP_OK, STEP_GATED, STEP_NOT_PD = CORRECT_OK, CORRECT_GATED, CORRECT_NOT_PD  # ukf_correct's codes
+STEP_INVALID, STEP_FALLBACK = 2, 4
 
 
 @njit(cache=True)
@@ -294,6 +279,44 @@ def _sigma(x: FloatArray, L: FloatArray, U: FloatArray, X: FloatArray) -> None:
             for k in range(j + 1):  # L lower triangular
                 s += U[i, k] * L[j, k]
             X[i, j] = s
+
+
+@njit(cache=True)
+def _kim_predict(
+    X: FloatArray,
+    dt: float,
+    u: FloatArray,
+    Wm: FloatArray,
+    Wc: FloatArray,
+    Q: FloatArray,
+    xm: FloatArray,
+    Pm: FloatArray,
+) -> None:  # pragma: no cover - numba
+    """ukf_predict with kim_transition (eq. 16) on the sigma points ``X`` (m, 7): the prior mean into
+    ``xm`` and covariance (symmetrised, plus ``Q``) into ``Pm``, both given as zeros."""
+    m, n = X.shape
+    Y = np.empty((m, n))
+    for i in range(m):
+        Y[i, 0] = X[i, 0] + dt * X[i, 2] + u[0]
+        Y[i, 1] = X[i, 1] + dt * X[i, 3] + u[1]
+        Y[i, 2] = X[i, 2] + u[2]
+        Y[i, 3] = X[i, 3] + u[3]
+        Y[i, 4] = u[4]
+        Y[i, 5] = u[5]
+        Y[i, 6] = u[6]
+    for i in range(m):
+        for j in range(n):
+            xm[j] += Wm[i] * Y[i, j]
+    for i in range(m):
+        for j in range(n):
+            dj = Wc[i] * (Y[i, j] - xm[j])
+            for k in range(n):
+                Pm[j, k] += dj * (Y[i, k] - xm[k])
+    for j in range(n):
+        for k in range(j, n):
+            s = 0.5 * (Pm[j, k] + Pm[k, j])
+            Pm[j, k] = s + Q[j, k]
+            Pm[k, j] = s + Q[k, j]
 
 
 @njit(cache=True)
@@ -332,36 +355,14 @@ def kim_pixel_step(
     info[0] = np.nan
     L = np.empty((n, n))
     X = np.empty((m, n))
-    if not _cholesky(P, L):
+    if not cholesky(P, L):
         return STEP_FALLBACK
     _sigma(x, L, U, X)
-    # predict (ukf_predict with kim_transition)
-    Y = np.empty((m, n))
-    for i in range(m):
-        Y[i, 0] = X[i, 0] + dt * X[i, 2] + u[0]
-        Y[i, 1] = X[i, 1] + dt * X[i, 3] + u[1]
-        Y[i, 2] = X[i, 2] + u[2]
-        Y[i, 3] = X[i, 3] + u[3]
-        Y[i, 4] = u[4]
-        Y[i, 5] = u[5]
-        Y[i, 6] = u[6]
     xm = np.zeros(n)
-    for i in range(m):
-        for j in range(n):
-            xm[j] += Wm[i] * Y[i, j]
     Pm = np.zeros((n, n))
-    for i in range(m):
-        for j in range(n):
-            dj = Wc[i] * (Y[i, j] - xm[j])
-            for k in range(n):
-                Pm[j, k] += dj * (Y[i, k] - xm[k])
-    for j in range(n):
-        for k in range(j, n):
-            s = 0.5 * (Pm[j, k] + Pm[k, j])
-            Pm[j, k] = s + Q[j, k]
-            Pm[k, j] = s + Q[k, j]
+    _kim_predict(X, dt, u, Wm, Wc, Q, xm, Pm)
     # update (ukf_update with kim_fisheye_h)
-    if not _cholesky(Pm, L):
+    if not cholesky(Pm, L):
         return STEP_FALLBACK
     _sigma(xm, L, U, X)
     Z = np.empty((m, 2))
@@ -388,83 +389,12 @@ def kim_pixel_step(
             R00 += height_var * J0 * J0
             R01 += height_var * J0 * J1
             R11 += height_var * J1 * J1
-    zh0 = 0.0
-    zh1 = 0.0
-    for i in range(m):
-        zh0 += Wm[i] * Z[i, 0]
-        zh1 += Wm[i] * Z[i, 1]
-    S00 = 0.0
-    S01 = 0.0
-    S11 = 0.0
-    Pxz = np.zeros((n, 2))
-    for i in range(m):
-        a0 = Z[i, 0] - zh0
-        a1 = Z[i, 1] - zh1
-        w = Wc[i]
-        S00 += w * a0 * a0
-        S01 += w * a0 * a1
-        S11 += w * a1 * a1
-        for j in range(n):
-            dx = w * (X[i, j] - xm[j])
-            Pxz[j, 0] += dx * a0
-            Pxz[j, 1] += dx * a1
-    S00 += R00
-    S01 += R01
-    S11 += R11
-    det = S00 * S11 - S01 * S01
-    if not (S00 > 0.0 and det > 0.0):
-        return STEP_NOT_PD
-    i00 = S11 / det
-    i01 = -S01 / det
-    i11 = S00 / det
-    r0 = z[0] - zh0
-    r1 = z[1] - zh1
-    nis = r0 * (i00 * r0 + i01 * r1) + r1 * (i01 * r0 + i11 * r1)
-    info[0] = nis
-    if not nis <= gate:
-        return STEP_GATED
-    K = np.empty((n, 2))
-    for j in range(n):
-        K[j, 0] = Pxz[j, 0] * i00 + Pxz[j, 1] * i01
-        K[j, 1] = Pxz[j, 0] * i01 + Pxz[j, 1] * i11
-        xo[j] = xm[j] + K[j, 0] * r0 + K[j, 1] * r1
-    if joseph:
-        # H = Pxz^T Pm^-1 (statistical linearisation) by the Cholesky factor of Pm
-        Hs = np.empty((2, n))
-        for col in range(2):
-            yv = np.empty(n)
-            for j in range(n):
-                s = Pxz[j, col]
-                for k in range(j):
-                    s -= L[j, k] * yv[k]
-                yv[j] = s / L[j, j]
-            for j in range(n - 1, -1, -1):
-                s = yv[j]
-                for k in range(j + 1, n):
-                    s -= L[k, j] * Hs[col, k]
-                Hs[col, j] = s / L[j, j]
-        A = np.eye(n)
-        for j in range(n):
-            for k in range(n):
-                A[j, k] -= K[j, 0] * Hs[0, k] + K[j, 1] * Hs[1, k]
-        AP = A @ Pm
-        Pn = AP @ A.T
-        for j in range(n):
-            kr0 = K[j, 0] * R00 + K[j, 1] * R01
-            kr1 = K[j, 0] * R01 + K[j, 1] * R11
-            for k in range(n):
-                Pn[j, k] += kr0 * K[k, 0] + kr1 * K[k, 1]
-    else:
-        Pn = np.empty((n, n))
-        for j in range(n):
-            ks0 = K[j, 0] * S00 + K[j, 1] * S01
-            ks1 = K[j, 0] * S01 + K[j, 1] * S11
-            for k in range(n):
-                Pn[j, k] = Pm[j, k] - (ks0 * K[k, 0] + ks1 * K[k, 1])
-    for j in range(n):
-        for k in range(n):
-            Po[j, k] = 0.5 * (Pn[j, k] + Pn[k, j])
-    return STEP_OK
+    Rz = np.empty((2, 2))
+    Rz[0, 0] = R00
+    Rz[0, 1] = R01
+    Rz[1, 0] = R01
+    Rz[1, 1] = R11
+    return ukf_correct(X, Z, Wm, Wc, xm, Pm, L, z, Rz, gate, joseph, xo, Po, info)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -572,14 +502,27 @@ class KimUkfConfig:
         return MerweScaledSigmaPoints(self.alpha, self.beta, self.kappa)
 
 
-def camera_state_W(ego: Any, mount: CameraMount) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``p_WC`` (3,), ``R_WC`` (3, 3) and ``v_WC`` (3,) from an ego state with ``p_WB``, ``v_WB``,
-    ``q_WB`` (or ``R_WB``) and optionally ``w_WB_B`` (the lever arm's velocity ``R_WB (w x p_BC)``)."""
+class EgoPose(Protocol):
+    """What the filter reads of the ego state at a capture time: the Pipeline's
+    :class:`~alight.mission.pipeline.CapturePose`, or an :class:`~alight.types.EgoState` (whose body rates
+    then add the camera lever arm's velocity)."""
+
+    @property
+    def p_WB(self) -> FloatArray: ...
+    @property
+    def R_WB(self) -> FloatArray: ...
+    @property
+    def v_WB(self) -> FloatArray: ...
+
+
+def camera_state_W(ego: EgoPose, mount: CameraMount) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``p_WC`` (3,), ``R_WC`` (3, 3) and ``v_WC`` (3,) from an ego state; with an :class:`EgoState`, the
+    lever arm's velocity ``R_WB (w x p_BC)`` is added."""
     p_WB = np.asarray(ego.p_WB, dtype=np.float64)
-    R_WB = np.asarray(ego.R_WB, dtype=np.float64) if hasattr(ego, "R_WB") else quat_to_rotmat(ego.q_WB)
+    R_WB = np.asarray(ego.R_WB, dtype=np.float64)
     v_WB = np.asarray(ego.v_WB, dtype=np.float64)
     p_WC, R_WC = camera_pose_W(p_WB, R_WB, mount)
-    w = getattr(ego, "w_WB_B", None)
+    w = ego.w_WB_B if isinstance(ego, EgoState) else None
     v_WC = v_WB if w is None else v_WB + R_WB @ np.cross(np.asarray(w, dtype=np.float64), mount.p_BC)
     if not (np.isfinite(p_WC).all() and np.isfinite(R_WC).all() and np.isfinite(v_WC).all()):
         raise EstimationError("KimUkf: non-finite ego state")
@@ -619,8 +562,9 @@ class KimUkf:
             self.lens = camera
         self.scheme = c.scheme()
         self._gate = float(chdtri(2, 1.0 - c.gate_probability)) if c.gating else math.inf
-        self.use_compiled = self.lens is not None and hasattr(self.scheme, "unit_points")
-        """Pixel updates run :func:`kim_pixel_step` (same arithmetic as the generic UKF, compiled)."""
+        self.use_compiled = self.lens is not None
+        """Pixel updates run :func:`kim_pixel_step` (the generic UKF compiled; every
+        :class:`~alight.estimation.sigma_points.SigmaPointScheme` gives its ``unit_points``)."""
         if self.use_compiled:
             # writable copies: numba compiles read-only arrays (the schemes' caches) as another type
             self._U = np.array(self.scheme.unit_points(N_STATE), dtype=np.float64)
@@ -806,7 +750,7 @@ class KimUkf:
                 R += c.height_std**2 * np.outer(J, J)
         return R
 
-    def update_pixel(self, t: float, px: FloatArray, ego: Any) -> bool:
+    def update_pixel(self, t: float, px: FloatArray, ego: EgoPose) -> bool:
         """Fuse the target's pixel ``px`` (u, v) seen at capture time ``t`` (s) with the ego state at that
         time (``p_WB``, ``v_WB``, ``q_WB``/``R_WB``, optional ``w_WB_B``; e.g. an
         :class:`~alight.types.EgoState`). True when used; a non-finite pixel, a camera at or below the
@@ -957,7 +901,7 @@ class KimUkf:
         self._z_var = max(c.height_std**2, 1e-12)
         return True
 
-    def predict_pixel(self, t: float, ego: Any, n_sigma: float = 3.0) -> tuple[FloatArray, float] | None:
+    def predict_pixel(self, t: float, ego: EgoPose, n_sigma: float = 3.0) -> tuple[FloatArray, float] | None:
         """The predicted pixel of the target at ``t`` (s) for the ego state then, and a gate radius (px):
         ``n_sigma`` times the square root of the innovation covariance's largest eigenvalue. For the
         detector's gating (:meth:`alight.perception.color_filter.RedTargetDetector.set_prediction`). None
@@ -1091,6 +1035,7 @@ class KimUkf:
 __all__ = [
     "KimUkf",
     "KimUkfConfig",
+    "EgoPose",
     "camera_state_W",
     "euler_zyx",
     "kim_camera_h",

@@ -56,7 +56,7 @@ from numba import njit
 from scipy.special import chdtri
 
 from alight.errors import EstimationError
-from alight.estimation.ego_ekf import NOT_POSITIVE_DEFINITE, OK, _mm, _mmt, chol_solve
+from alight.estimation.ego_ekf import NOT_POSITIVE_DEFINITE, OK, _mm, _mmt
 from alight.estimation.guards import (
     FUTURE_TOLERANCE_S,
     MAX_HORIZON_S,
@@ -71,6 +71,8 @@ from alight.estimation.telemetry import (
     carry_fix,
     telemetry_adds_information,
 )
+from alight.numerics.linalg import chol_solve
+from alight.numerics.rotation import wrap_period
 from alight.types import FloatArray, PlatformEstimate, PlatformMeasurement
 
 REJECTED = 3
@@ -105,12 +107,6 @@ def turn_jerk_density(j: float, v: float) -> float:
     v2 = v * v
     vf2 = TURN_JERK_FADE_SPEED_MPS * TURN_JERK_FADE_SPEED_MPS
     return j * abs(v) / (v2 + TURN_JERK_CORNER_SPEED_MPS * TURN_JERK_CORNER_SPEED_MPS) * vf2 / (v2 + vf2)
-
-
-@njit(cache=True)
-def _wrap(a: float, period: float) -> float:
-    """``a`` wrapped to [-period/2, period/2)."""
-    return (a + 0.5 * period) % period - 0.5 * period
 
 
 @njit(cache=True)
@@ -150,7 +146,7 @@ def unicycle_step(x: FloatArray, dt: float, out: FloatArray) -> None:
     out[I_PX] = x[I_PX] + v * dt * (c * S - s * C)
     out[I_PY] = x[I_PY] + v * dt * (s * S + c * C)
     out[I_PZ] = x[I_PZ]
-    out[I_THETA] = _wrap(th + om * dt, 2.0 * math.pi)
+    out[I_THETA] = wrap_period(th + om * dt, 2.0 * math.pi)
     out[I_V] = v
     if n == 6:
         out[I_OMEGA] = om
@@ -275,7 +271,7 @@ def platform_residual(x: FloatArray, z: FloatArray, m: int, yaw_period: float, r
     for i in range(3):
         r[i] = z[i] - x[i]
     if m >= 4:
-        r[3] = _wrap(z[3] - x[I_THETA], yaw_period)
+        r[3] = wrap_period(z[3] - x[I_THETA], yaw_period)
     if m == 5:
         r[4] = z[4] - x[I_V]
 
@@ -373,7 +369,7 @@ def platform_update_kernel(
             if i != I_V:
                 Po[i, I_V] = -Po[i, I_V]
                 Po[I_V, i] = -Po[I_V, i]
-    xo[I_THETA] = _wrap(xo[I_THETA], 2.0 * math.pi)
+    xo[I_THETA] = wrap_period(xo[I_THETA], 2.0 * math.pi)
     return OK
 
 
@@ -405,7 +401,7 @@ def unicycle_predict_ahead(
         a[k, 0] = -vt * om * sk
         a[k, 1] = vt * om * ck
         a[k, 2] = 0.0
-        yaw[k] = _wrap(thk, 2.0 * math.pi)
+        yaw[k] = wrap_period(thk, 2.0 * math.pi)
 
 
 @njit(cache=True)

@@ -51,11 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from alight.errors import EstimationError
-from alight.types import FloatArray
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+from alight.types import FloatArray, wrap_angle
 
 
 def lowpass_alpha(cutoff_hz: float, dt: float) -> float:
@@ -201,17 +197,17 @@ class PlatformVelocityEstimator:
         turn = (yaw - prev + 0.5 * period) % period - 0.5 * period
         self._turned += turn
         if not math.isnan(self._psi):
-            self._psi = _wrap(self._psi + turn)
+            self._psi = wrap_angle(self._psi + turn)
 
     def _heading_input(self, t: float, psi_in: float, measured: bool) -> None:
         if measured and self.config.yaw_fold > 1 and math.isfinite(self._psi):
             period = 2.0 * math.pi / self.config.yaw_fold
             psi_in = self._psi + ((psi_in - self._psi + 0.5 * period) % period - 0.5 * period)
         if math.isnan(self._psi):
-            self._psi = _wrap(psi_in)
+            self._psi = wrap_angle(psi_in)
         else:
             a = lowpass_alpha(self._fh, t - self._t_heading)
-            self._psi = _wrap(self._psi + a * _wrap(psi_in - self._psi))
+            self._psi = wrap_angle(self._psi + a * wrap_angle(psi_in - self._psi))
         self._t_heading = t
 
     # ---- output -----------------------------------------------------------------------------------

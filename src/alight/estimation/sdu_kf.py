@@ -93,7 +93,7 @@ from alight.estimation.guards import (
 )
 from alight.estimation.platform_velocity import PlatformVelocityConfig, PlatformVelocityEstimator
 from alight.estimation.turn_rate import TurnRateConfig, TurnRateTracker, turn_predict
-from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement
+from alight.types import EgoState, FloatArray, PlatformEstimate, PlatformMeasurement, wrap_angle
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -535,7 +535,7 @@ class SduKalmanFilter:
                 np.array([px, py, self._z]), np.array([mx, my, 0.0]), self.turn_rate.rate, tau
             )
             yaw = self.velocity_estimator.heading + self.turn_rate.rate * tau
-            return p, v, a, np.remainder(yaw + math.pi, 2.0 * math.pi) - math.pi
+            return p, v, a, wrap_angle(yaw)
         p = np.empty((k, 3))
         p[:, 0] = px + mx * tau
         p[:, 1] = py + my * tau

@@ -33,9 +33,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from alight.errors import EstimationError
 from alight.estimation.sigma_points import SigmaPointScheme
+from alight.numerics.linalg import cho_solve, cholesky
 from alight.types import FloatArray
 
 COVARIANCE_UPDATES = ("standard", "joseph")
@@ -96,6 +98,187 @@ def ukf_predict(
     return xm, Pm
 
 
+# --------------------------------------------------------------------------------------------------
+# The measurement update, compiled: the generic filter's and the Kim UKF's compiled step's
+# --------------------------------------------------------------------------------------------------
+
+CORRECT_OK, CORRECT_GATED, CORRECT_NOT_PD = 0, 1, 3
+"""Return codes of :func:`ukf_correct`."""
+
+
+@njit(cache=True)
+def _inverse_spd(S: FloatArray, Si: FloatArray) -> bool:  # pragma: no cover - numba
+    """``Si = S^-1`` for the symmetric ``S`` (k, k); False when ``S`` is not positive definite. ``k <= 2``
+    in closed form (every update alight makes: a pixel or a horizontal position), larger by Cholesky."""
+    k = S.shape[0]
+    if k == 1:
+        if not S[0, 0] > 0.0:
+            return False
+        Si[0, 0] = 1.0 / S[0, 0]
+        return True
+    if k == 2:
+        det = S[0, 0] * S[1, 1] - S[0, 1] * S[0, 1]
+        if not (S[0, 0] > 0.0 and det > 0.0):
+            return False
+        Si[0, 0] = S[1, 1] / det
+        Si[0, 1] = -S[0, 1] / det
+        Si[1, 0] = Si[0, 1]
+        Si[1, 1] = S[0, 0] / det
+        return True
+    Ls = np.empty((k, k))
+    if not cholesky(S, Ls):
+        return False
+    cho_solve(Ls, np.eye(k), Si)
+    return True
+
+
+@njit(cache=True)
+def _row_times(A: FloatArray, j: int, B: FloatArray, out: FloatArray) -> None:  # pragma: no cover - numba
+    """``out = A[j] @ B`` (row j of A times B), each sum started from its first term."""
+    k = A.shape[1]
+    for a in range(B.shape[1]):
+        s = A[j, 0] * B[0, a]
+        for b in range(1, k):
+            s += A[j, b] * B[b, a]
+        out[a] = s
+
+
+@njit(cache=True)
+def _dot_row(v: FloatArray, A: FloatArray, c: int) -> float:  # pragma: no cover - numba
+    """``v . A[c]``, the sum started from its first term."""
+    s = v[0] * A[c, 0]
+    for a in range(1, v.shape[0]):
+        s += v[a] * A[c, a]
+    return float(s)
+
+
+@njit(cache=True)
+def _innovation_moments(
+    X: FloatArray,
+    Z: FloatArray,
+    Wm: FloatArray,
+    Wc: FloatArray,
+    x: FloatArray,
+    R: FloatArray,
+    zh: FloatArray,
+    S: FloatArray,
+    Pxz: FloatArray,
+) -> None:  # pragma: no cover - numba
+    """The predicted measurement ``zh`` (k,), its covariance plus the noise, ``S`` (k, k), and the
+    cross-covariance ``Pxz`` (n, k) of the sigma points, accumulated into the given zeros."""
+    m, n = X.shape
+    k = Z.shape[1]
+    for i in range(m):
+        for a in range(k):
+            zh[a] += Wm[i] * Z[i, a]
+    d = np.empty(k)
+    for i in range(m):
+        for a in range(k):
+            d[a] = Z[i, a] - zh[a]
+        w = Wc[i]
+        for a in range(k):
+            for b in range(a, k):
+                S[a, b] += w * d[a] * d[b]
+        for j in range(n):
+            dx = w * (X[i, j] - x[j])
+            for a in range(k):
+                Pxz[j, a] += dx * d[a]
+    for a in range(k):
+        for b in range(a, k):
+            S[a, b] += R[a, b]
+            S[b, a] = S[a, b]
+
+
+@njit(cache=True)
+def _posterior_covariance(
+    P: FloatArray,
+    L: FloatArray,
+    K: FloatArray,
+    S: FloatArray,
+    R: FloatArray,
+    Pxz: FloatArray,
+    joseph: bool,
+    Po: FloatArray,
+) -> None:  # pragma: no cover - numba
+    """``Po`` (n, n): ``P - K S K^T`` or, ``joseph``, ``(I - K H) P (I - K H)^T + K R K^T`` with
+    ``H^T = P^-1 Pxz`` (``L`` the factor of ``P``); symmetrised."""
+    n, k = K.shape
+    kr = np.empty(k)
+    if joseph:
+        Ht = np.empty((n, k))  # H^T = P^-1 Pxz, the statistical linearisation
+        cho_solve(L, Pxz, Ht)
+        A = np.eye(n)
+        for j in range(n):
+            for c in range(n):
+                A[j, c] -= _dot_row(K[j], Ht, c)
+        AP = A @ P
+        Pn = AP @ A.T
+        for j in range(n):
+            _row_times(K, j, R, kr)
+            for c in range(n):
+                Pn[j, c] += _dot_row(kr, K, c)
+    else:
+        Pn = np.empty((n, n))
+        for j in range(n):
+            _row_times(K, j, S, kr)
+            for c in range(n):
+                Pn[j, c] = P[j, c] - _dot_row(kr, K, c)
+    for j in range(n):
+        for c in range(n):
+            Po[j, c] = 0.5 * (Pn[j, c] + Pn[c, j])
+
+
+@njit(cache=True)
+def ukf_correct(
+    X: FloatArray,
+    Z: FloatArray,
+    Wm: FloatArray,
+    Wc: FloatArray,
+    x: FloatArray,
+    P: FloatArray,
+    L: FloatArray,
+    z: FloatArray,
+    R: FloatArray,
+    gate: float,
+    joseph: bool,
+    xo: FloatArray,
+    Po: FloatArray,
+    info: FloatArray,
+) -> int:  # pragma: no cover - numba
+    """The UKF measurement update (module docstring) from the sigma points ``X`` (m, n) of the prior
+    ``(x, P)``, their predicted measurements ``Z`` (m, k), the weights ``Wm``, ``Wc`` (m,), the measurement
+    ``z`` (k,) and its symmetric noise ``R`` (k, k). ``L`` is the lower Cholesky factor of ``P``, read by
+    the Joseph form only. The posterior goes to ``xo`` (n,), ``Po`` (n, n) and the NIS to ``info[0]``.
+    Returns ``CORRECT_OK``, ``CORRECT_GATED`` (NIS above ``gate``) or ``CORRECT_NOT_PD`` (``S``)."""
+    n = X.shape[1]
+    k = Z.shape[1]
+    zh = np.zeros(k)
+    S = np.zeros((k, k))
+    Pxz = np.zeros((n, k))
+    _innovation_moments(X, Z, Wm, Wc, x, R, zh, S, Pxz)
+    Si = np.empty((k, k))
+    if not _inverse_spd(S, Si):
+        return CORRECT_NOT_PD
+    r = np.empty(k)
+    for a in range(k):
+        r[a] = z[a] - zh[a]
+    nis = r[0] * _dot_row(r, Si, 0)
+    for a in range(1, k):
+        nis += r[a] * _dot_row(r, Si, a)
+    info[0] = nis
+    if not nis <= gate:
+        return CORRECT_GATED
+    K = np.empty((n, k))  # K = Pxz S^-1
+    for j in range(n):
+        _row_times(Pxz, j, Si, K[j])
+        s = x[j]
+        for a in range(k):
+            s += K[j, a] * r[a]
+        xo[j] = s
+    _posterior_covariance(P, L, K, S, R, Pxz, joseph, Po)
+    return CORRECT_OK
+
+
 def ukf_update(
     x: FloatArray,
     P: FloatArray,
@@ -108,7 +291,8 @@ def ukf_update(
     covariance_update: str = "standard",
 ) -> tuple[FloatArray, FloatArray, UpdateResult]:
     """Posterior ``(x, P, result)`` for the measurement ``z`` (k,) with noise covariance ``R`` (k, k) and
-    the model ``hx(X, *args) -> Z`` (m, k). When ``result`` is not accepted, ``x, P`` are the inputs."""
+    the model ``hx(X, *args) -> Z`` (m, k). When ``result`` is not accepted, ``x, P`` are the inputs.
+    The update itself is :func:`ukf_correct`, the kernel the compiled filters call."""
     n = x.shape[0]
     if not (np.isfinite(z).all() and np.isfinite(R).all()):
         return x, P, UpdateResult(False, math.nan, INVALID)
@@ -117,28 +301,23 @@ def ukf_update(
     if not np.isfinite(Z).all():
         return x, P, UpdateResult(False, math.nan, INVALID)
     Wm, Wc = scheme.weights(n)
-    zhat, S, dZ = unscented_transform(Z, Wm, Wc, R)
-    dX = X - x
-    Pxz = (dX.T * Wc) @ dZ
-    r = z - zhat
-    try:
-        L = np.linalg.cholesky(S)
-    except np.linalg.LinAlgError:
+    joseph = covariance_update == "joseph"
+    L = np.zeros((n, n))
+    if joseph and not cholesky(_c(P), L):  # the statistical linearisation solves with P
         return x, P, UpdateResult(False, math.nan, NOT_POSITIVE_DEFINITE)
-    w = np.linalg.solve(L, r)
-    nis = float(w @ w)
-    if not nis <= gate:
-        return x, P, UpdateResult(False, nis, GATED)
-    # K = Pxz S^-1 = ((L L^T)^-1 Pxz^T)^T
-    K = np.linalg.solve(L.T, np.linalg.solve(L, Pxz.T)).T
-    x_new = x + K @ r
-    if covariance_update == "joseph":
-        H = np.linalg.solve(P, Pxz).T  # statistical linearisation, P symmetric
-        A = np.eye(n) - K @ H
-        P_new = A @ P @ A.T + K @ R @ K.T
-    else:
-        P_new = P - K @ S @ K.T
-    return x_new, 0.5 * (P_new + P_new.T), UpdateResult(True, nis, OK)
+    xo, Po, info = np.empty(n), np.empty((n, n)), np.full(1, math.nan)
+    code = ukf_correct(
+        _c(X), _c(Z), _c(Wm), _c(Wc), _c(x), _c(P), L, _c(z), _c(R), float(gate), joseph, xo, Po, info
+    )
+    nis = float(info[0])
+    if code == CORRECT_OK:
+        return xo, Po, UpdateResult(True, nis, OK)
+    return x, P, UpdateResult(False, nis, GATED if code == CORRECT_GATED else NOT_POSITIVE_DEFINITE)
+
+
+def _c(a: FloatArray) -> FloatArray:
+    # one array type for the kernel (C order, writable float64), so that it compiles once
+    return np.require(a, np.float64, ["C", "W"])
 
 
 class UnscentedKalmanFilter:
@@ -221,8 +400,12 @@ class UnscentedKalmanFilter:
 
 __all__ = [
     "COVARIANCE_UPDATES",
+    "CORRECT_GATED",
+    "CORRECT_NOT_PD",
+    "CORRECT_OK",
     "UnscentedKalmanFilter",
     "UpdateResult",
+    "ukf_correct",
     "ukf_predict",
     "ukf_update",
     "unscented_transform",

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from alight.types import FloatArray
+from alight.types import FloatArray, wrap_angle
 
 M_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 """World-vector map ENU <-> NED (its own inverse)."""
@@ -86,7 +86,7 @@ def mavlink_to_q_WB(q_wxyz_ned_frd: FloatArray) -> FloatArray:
 def yaw_enu_to_ned(yaw_enu: float) -> float:
     """Heading: ENU yaw (from east, counter-clockwise) <-> NED yaw (from north, clockwise), wrapped to
     [-pi, pi)."""
-    return (math.pi / 2.0 - yaw_enu + math.pi) % (2.0 * math.pi) - math.pi
+    return wrap_angle(math.pi / 2.0 - yaw_enu)
 
 
 yaw_ned_to_enu = yaw_enu_to_ned

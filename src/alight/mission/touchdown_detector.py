@@ -38,6 +38,7 @@ import numpy as np
 from pydantic import Field
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 
+from alight.numerics.rotation import rotmat_entries
 from alight.settings import SETTINGS, PositiveFloat
 from alight.types import GRAVITY_MPS2, FloatArray
 
@@ -155,20 +156,17 @@ class TouchdownDetector:
         ``level_gain_per_s`` per radian, with no yaw rate: w_B = k e3 x (R^T e_z), i.e. k R^T (z_B x e_z).
         ``q_WB``: the attitude (x, y, z, w)."""
         x, y, z, w = (float(v) for v in q_WB)
+        r00, r01, _, r10, r11, _, r20, r21, _ = rotmat_entries.py_func(x, y, z, w, 2.0)  # q as it is
         k = self.config.level_gain_per_s
         if self.config.level_to == "steady" and self._zb_lp is not None:
             # the target direction e expressed in B: its dot products with the body x and y axes in W
             n = math.sqrt(sum(c * c for c in self._zb_lp))
             e = (self._zb_lp[0] / n, self._zb_lp[1] / n, self._zb_lp[2] / n)
-            xb = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
-            yb = (2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x))
-            ex = xb[0] * e[0] + xb[1] * e[1] + xb[2] * e[2]
-            ey = yb[0] * e[0] + yb[1] * e[1] + yb[2] * e[2]
+            ex = r00 * e[0] + r10 * e[1] + r20 * e[2]  # the body x axis (column 0 of R_WB) . e
+            ey = r01 * e[0] + r11 * e[1] + r21 * e[2]  # the body y axis . e
             return np.array([-k * ey, k * ex, 0.0])
         # e_z expressed in B: the third row of R_WB
-        ex = 2.0 * (x * z - w * y)
-        ey = 2.0 * (y * z + w * x)
-        return np.array([-k * ey, k * ex, 0.0])
+        return np.array([-k * r21, k * r20, 0.0])
 
     def update(self, t: float, v_z_rel_mps: float, range_m: float | None, thrust_N: float) -> TouchdownState:
         """Advance to ``t``. ``v_z_rel_mps``: the ego estimate's vertical speed relative to the platform

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from alight.types import FloatArray
+from alight.numerics import FloatArray
 
 _NEWTON_MAX = 200
 """Iterations of the bracketed Newton at the most (bisection alone needs < 1100 for any float bracket;

@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from alight.cameras.pinhole import CameraMount, camera_pose_W
+from alight.numerics.rotation import wrap_period
 from alight.perception.pnp import PnpResult, solve_pnp
 from alight.types import FloatArray, Observation, PlatformMeasurement, yaw_of
 
@@ -39,8 +40,7 @@ def skew(v: FloatArray) -> FloatArray:
 
 def wrap_yaw(yaw: float, fold: int) -> float:
     """``yaw`` modulo ``2 pi / fold``, in ``[-pi / fold, pi / fold)``."""
-    period = 2.0 * math.pi / fold
-    return (yaw + period / 2.0) % period - period / 2.0
+    return wrap_period.py_func(yaw, 2.0 * math.pi / fold)
 
 
 def world_covariance(

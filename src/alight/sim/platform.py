@@ -563,7 +563,7 @@ class Platform:
         else:
             acc[:, 0] = a_t * c - ac * s
             acc[:, 1] = a_t * s + ac * c
-        yaw = (g[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        yaw = wrap_angle(g[:, 2])
         return PlatformStates(t.copy(), p, vel, acc, yaw, v * g[:, 3])
 
     def curvature(self, t: float) -> float:

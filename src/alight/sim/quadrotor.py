@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from alight.airframe import DEFAULT_AIRFRAME, Airframe
+from alight.numerics.rotation import quat_to_R_scaled, rotmat_entries
 from alight.types import GRAVITY_MPS2, FloatArray, quat_to_rotmat
 
 # --------------------------------------------------------------------------------------------------
@@ -128,16 +129,7 @@ def _rigid_body_deriv(
     qx, qy, qz, qw = y[6], y[7], y[8], y[9]
     # R_WB of a unit quaternion; RK4 stages are off the unit sphere by O(dt^5), normalise anyway
     n2 = qx * qx + qy * qy + qz * qz + qw * qw
-    s = 2.0 / n2
-    r00 = 1.0 - s * (qy * qy + qz * qz)
-    r01 = s * (qx * qy - qz * qw)
-    r02 = s * (qx * qz + qy * qw)
-    r10 = s * (qx * qy + qz * qw)
-    r11 = 1.0 - s * (qx * qx + qz * qz)
-    r12 = s * (qy * qz - qx * qw)
-    r20 = s * (qx * qz - qy * qw)
-    r21 = s * (qy * qz + qx * qw)
-    r22 = 1.0 - s * (qx * qx + qy * qy)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotmat_entries(qx, qy, qz, qw, 2.0 / n2)
 
     thrust = f[0] + f[1] + f[2] + f[3]
     tau_x = 0.0
@@ -414,17 +406,8 @@ def contact_wrench(
     deck_on = deck[DK_ON] > 0.5
     qx, qy, qz, qw = y[6], y[7], y[8], y[9]
     n2 = qx * qx + qy * qy + qz * qz + qw * qw
-    s = 2.0 / n2
     R = np.empty((3, 3))
-    R[0, 0] = 1.0 - s * (qy * qy + qz * qz)
-    R[0, 1] = s * (qx * qy - qz * qw)
-    R[0, 2] = s * (qx * qz + qy * qw)
-    R[1, 0] = s * (qx * qy + qz * qw)
-    R[1, 1] = 1.0 - s * (qx * qx + qz * qz)
-    R[1, 2] = s * (qy * qz - qx * qw)
-    R[2, 0] = s * (qx * qz - qy * qw)
-    R[2, 1] = s * (qy * qz + qx * qw)
-    R[2, 2] = 1.0 - s * (qx * qx + qy * qy)
+    quat_to_R_scaled(qx, qy, qz, qw, 2.0 / n2, R)
     wx, wy, wz = y[10], y[11], y[12]
     k, c, mu, vs = cp[CP_K], cp[CP_C], cp[CP_MU], cp[CP_V_SLIP]
     cyaw, syaw = math.cos(deck[DK_YAW]), math.sin(deck[DK_YAW])

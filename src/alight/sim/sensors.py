@@ -20,6 +20,7 @@ from numba import njit
 from pydantic import Field
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 
+from alight.numerics.rotation import rotmat_entries, unit_quats_to_rotmats
 from alight.settings import SETTINGS, NonNegFloat, PositiveFloat
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray, quat_to_rotmat
 
@@ -94,27 +95,12 @@ def _f64(a: FloatArray) -> FloatArray:
 @njit(cache=True)
 def _body_axis(q: FloatArray, k: int | np.int64) -> tuple[float, float, float]:
     """Column k of R_WB for the unit quaternion q = (x, y, z, w): the body axis k in W."""
-    x, y, z, w = q[0], q[1], q[2], q[3]
+    e = rotmat_entries(q[0], q[1], q[2], q[3], 2.0)
     if k == 0:
-        return 1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)
+        return e[0], e[3], e[6]
     if k == 1:
-        return 2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w)
-    return 2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)
-
-
-def _rotmat_many(q: FloatArray) -> FloatArray:
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    R = np.empty((q.shape[0], 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - z * w)
-    R[:, 0, 2] = 2 * (x * z + y * w)
-    R[:, 1, 0] = 2 * (x * y + z * w)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - x * w)
-    R[:, 2, 0] = 2 * (x * z - y * w)
-    R[:, 2, 1] = 2 * (y * z + x * w)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
+        return e[1], e[4], e[7]
+    return e[2], e[5], e[8]
 
 
 def _positive(name: str, v: float) -> None:
@@ -274,7 +260,7 @@ class Imu:
         # bias of sample k: initial + the first k increments
         ba = self._bias[0:3] + np.cumsum(n[:, 6:9], axis=0) - n[:, 6:9]
         bg = self._bias[3:6] + np.cumsum(n[:, 9:12], axis=0) - n[:, 9:12]
-        R = _rotmat_many(np.asarray(q_WB, dtype=np.float64))
+        R = unit_quats_to_rotmats(q_WB)
         f = a.copy()
         f[:, 2] += GRAVITY_MPS2
         acc = np.einsum("nji,nj->ni", R, f) + ba + n[:, 0:3]

@@ -1,0 +1,73 @@
+"""Reading alight's YAML files (scenarios, campaigns, airframes, device profiles, QoS measurements): one
+loader, so every file refuses a key given twice and reports bad YAML the same way, in one line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from alight.errors import ConfigError
+
+
+class UniqueKeyLoader(yaml.SafeLoader):  # type: ignore[misc,unused-ignore]  # PyYAML has no stubs here
+    """PyYAML's safe loader, refusing a key given twice in one mapping (the plain loader keeps the last
+    one silently, so ``speed_mps: 2`` ... ``speed_mps: 20`` would fly the second)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                duplicate = key in seen
+            except TypeError:  # an unhashable key: the base class reports it
+                break
+            if duplicate:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} given twice", key_node.start_mark
+                )
+            seen.add(key)
+        mapping: dict[Any, Any] = super().construct_mapping(node, deep=deep)
+        return mapping
+
+
+def load_yaml_text(text: str, source: str, what: str = "scenario", *, allow_empty: bool = False) -> Any:
+    """Parse YAML with :class:`UniqueKeyLoader`; bad YAML or a duplicate key becomes one ``ConfigError``
+    line naming ``source`` (and the line where YAML says it), and so does an empty document unless
+    ``allow_empty`` (then it is None, for a caller whose own validation says what is missing)."""
+    try:
+        data = yaml.load(text, Loader=UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)  # third-party: only marked PyYAML errors have one
+        line = getattr(mark, "line", None)  # third-party: a PyYAML mark
+        where = f" (line {line + 1})" if line is not None else ""
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]  # third-party: a PyYAML error
+        raise ConfigError(f"{source}: not valid YAML{where}: {problem}") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: not valid YAML: nested too deeply") from None
+    if data is None and not allow_empty:
+        raise ConfigError(f"{source}: the file is empty (write {{}} for a {what} with every default)")
+    return data
+
+
+def read_yaml_file(
+    path: str | Path, what: str, *, source: str | None = None, allow_empty: bool = False
+) -> tuple[Any, str]:
+    """The parsed document and the text of the ``what`` file (``scenario``, ``campaign``...) at ``path``:
+    a missing, unreadable or non-UTF-8 file and bad YAML become one ``ConfigError`` line naming ``source``
+    (default: the path); see :func:`load_yaml_text`."""
+    p = Path(path)
+    where = str(p) if source is None else source
+    if not p.is_file():
+        raise ConfigError(f"{where}: no such {what} file")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{where}: not valid YAML: not UTF-8 text ({err.reason})") from None
+    except OSError as err:
+        raise ConfigError(f"{where}: cannot read the {what} file: {err.strerror or err}") from None
+    return load_yaml_text(text, where, what, allow_empty=allow_empty), text
+
+
+__all__ = ["UniqueKeyLoader", "load_yaml_text", "read_yaml_file"]
