@@ -6,7 +6,7 @@ module) at its rate, controller at 100 Hz, mission and
 planner at the planner's rate (50 Hz), perception at the scenario's rate with its latency, log at 50 Hz.
 
 The world (physics, contact and its judging, sensors, camera, faults, randomness) is
-``evaluation/world.py``'s :class:`~alight.evaluation.world.World`, the same one ``alight sitl`` steps
+``sim/world.py``'s :class:`~alight.sim.world.World`, the same one ``alight sitl`` steps
 behind MAVLink. The runner is the only place that sees both the truth and the pipeline: it passes the
 world's sensor data to the pipeline, the pipeline's commands to the world, and scores what only the
 truth can tell (false detections, false locks).
@@ -29,11 +29,11 @@ from alight.energy import flight_energy_J
 from alight.errors import ConfigError
 from alight.estimation import TelemetryFusing
 from alight.evaluation.log import MissionLog
-from alight.evaluation.world import SEED_PIPELINE, TICK_DT, Shot, World, mission_seeds
-from alight.mission.presets import build_preset
+from alight.mission.presets import Preset, build_preset
 from alight.scenario import Scenario
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V, SL_W
 from alight.sim.touchdown import Contact
+from alight.sim.world import SEED_PIPELINE, TICK_DT, Shot, World, mission_seeds
 from alight.types import Mode, Observation, Outcome
 
 _LANDING_PHASES = ("descend", "done")  # the final action's phases where touching the ground is its end
@@ -53,6 +53,26 @@ class MissionRun:
 
 FrameSink = Callable[[float, np.ndarray, list[Observation]], None]
 """Receives each camera frame a vision preset processed: capture time (s), the image, the detections."""
+
+
+def _composed(
+    scenario: Scenario, airframe: Airframe | None
+) -> tuple[Airframe, Preset, list[np.random.SeedSequence]]:
+    """The airframe (``airframe``, else the scenario's), the scenario's preset built for it and the
+    mission's seeds, the preset's draws from its own child (:data:`~alight.sim.world.SEED_PIPELINE`)."""
+    if airframe is None:
+        airframe = load_airframe(scenario.airframe)
+    seeds = mission_seeds(scenario.seed)
+    preset = build_preset(scenario, airframe, np.random.default_rng(seeds[SEED_PIPELINE]))
+    return airframe, preset, seeds
+
+
+def world_for_scenario(scenario: Scenario, airframe: Airframe | None = None) -> World:
+    """The world of ``scenario`` for its preset, seeded as :func:`run_mission` seeds it, for a flight
+    whose pipeline runs elsewhere (``alight sitl``): the preset is built only for its camera, pad, mount
+    and rate gains."""
+    airframe, preset, seeds = _composed(scenario, airframe)
+    return World(scenario, airframe, preset, seeds)
 
 
 def run_mission(
@@ -76,10 +96,7 @@ def run_mission(
     is the same as with every frame rendered (``render_every_frame``, for tests and measurements)."""
     wall0 = time.perf_counter()
     s = scenario
-    if airframe is None:
-        airframe = load_airframe(s.airframe)
-    seeds = mission_seeds(s.seed)
-    preset = build_preset(s, airframe, np.random.default_rng(seeds[SEED_PIPELINE]))
+    airframe, preset, seeds = _composed(s, airframe)
     pipeline = preset.pipeline
     if s.platform.telemetry is not None and not isinstance(pipeline.platform_estimator, TelemetryFusing):
         raise ConfigError(

@@ -75,7 +75,7 @@ def run_bridge(
         # Compile the pipeline's numba kernels before taking the link: a first compile takes tens of
         # seconds on a fresh install, during which a companion would not answer the autopilot (a lost
         # offboard stream) or, in lockstep with the emulator, would let its world run on without us.
-        from alight.warmup import presets_to_warm_up, warm_up
+        from alight.compile.warmup import presets_to_warm_up, warm_up
 
         warm_up(presets_to_warm_up([scenario.model_dump(mode="json")]))
         conn = open_link(connect)

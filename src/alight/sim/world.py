@@ -6,7 +6,7 @@ would not hand its pipeline: the truth of both vehicles, the contact with the de
 its judging, the sensors' and the camera's models with their faults.
 
 - Physics: the vehicle's rigid body, motors and the autopilot's 1 kHz body-rate loop in compiled
-  batches (``evaluation.physics.tick_batch``) that end at the 100 Hz command ticks, where the command
+  batches (``sim.physics.tick_batch``) that end at the 100 Hz command ticks, where the command
   can change, or earlier where a first contact is to be judged or an IMU bias step is due. Wind and
   the deck's state are stamped at each batch's start.
 - Contact: the feet on the moving deck and the ground are a spring-damper with friction inside the
@@ -30,14 +30,18 @@ import math
 import typing
 from collections import deque
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from alight.airframe import Airframe
-from alight.cameras.pinhole import camera_pose_W
-from alight.control.rate import pack_low_level_params
-from alight.evaluation.physics import (
+from alight.cameras import CameraModel
+from alight.cameras.pinhole import CameraMount, camera_pose_W
+from alight.control.rate import RateControllerGains, pack_low_level_params
+from alight.pads import PadDesign
+from alight.scenario import Scenario
+from alight.sim.faults import Faults, FrameFate, speed_profile
+from alight.sim.physics import (
     IN_DECK,
     IN_F_EXT,
     IN_MOTORS_ON,
@@ -47,8 +51,6 @@ from alight.evaluation.physics import (
     N_IN,
     tick_batch,
 )
-from alight.scenario import Scenario
-from alight.sim.faults import Faults, FrameFate, speed_profile
 from alight.sim.platform import PathKind, Platform, PlatformConfig, SpeedProfile
 from alight.sim.quadrotor import (
     CP_K,
@@ -95,9 +97,6 @@ from alight.sim.wind import (
 )
 from alight.types import EgoState, FloatArray, Observation, Outcome, quat_to_rotmat
 
-if TYPE_CHECKING:
-    from alight.mission.presets import Preset
-
 PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
 CONTROL_DT = 0.01  # the command ticks: a physics batch ends at each
@@ -120,7 +119,7 @@ def mission_seeds(seed: int) -> list[np.random.SeedSequence]:
 def call_every_platform_path() -> None:
     """Evaluate each platform path kind once (one time and many, with and without a speed profile), so
     that its kernels are compiled or loaded: which path a mission drives is its scenario's choice, and
-    a warm-up flight (``alight.warmup``) drives one."""
+    a warm-up flight (``alight.compile.warmup``) drives one."""
     ts = np.linspace(0.0, 2.0, 5)
     profile = SpeedProfile.brake_stop(1.0, t_s=0.5, decel_mps2=2.0, wait_s=0.5, accel_mps2=1.0)
     for path in typing.get_args(PathKind):
@@ -224,6 +223,39 @@ otherwise."""
 _NOTHING: tuple[()] = ()
 
 
+class VehicleSetup(Protocol):
+    """What the world simulates of the vehicle that flies in it, from the flying side's composition
+    (``alight.mission.presets.Preset`` is one): the world needs it for the camera's images and the
+    autopilot's rate loop, and nothing else of the pipeline."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def mount(self) -> CameraMount:
+        """The camera's pose on the body."""
+
+    @property
+    def rate_gains(self) -> RateControllerGains:
+        """The autopilot's body-rate loop, which the physics runs at 1 kHz."""
+
+    @property
+    def uses_camera(self) -> bool:
+        """Rendered camera frames (True) or the ground-truth sensor's observations."""
+
+    @property
+    def camera(self) -> CameraModel | None:
+        """The camera model to render through (required when ``uses_camera``)."""
+
+    @property
+    def pad(self) -> PadDesign | None:
+        """The pad drawn on the platform (required when ``uses_camera``)."""
+
+    @property
+    def color_camera(self) -> bool:
+        """The camera delivers colour (BGR) images unless the scenario says otherwise."""
+
+
 class World:
     """The world of ``scenario`` (module docstring), for the preset that will fly it.
 
@@ -237,7 +269,7 @@ class World:
         self,
         scenario: Scenario,
         airframe: Airframe,
-        preset: Preset,
+        preset: VehicleSetup,
         seeds: list[np.random.SeedSequence],
     ) -> None:
         s = scenario
@@ -399,20 +431,6 @@ class World:
         self._batch_xs = self._batch_imu = np.empty((0, 0))
         self._batch_touch: list[list[float]] = []  # feet on (deck, ground) after each tick of the batch
         self._batch_i = self._batch_n = 0
-
-    @classmethod
-    def for_scenario(cls, scenario: Scenario, airframe: Airframe | None = None) -> World:
-        """The world of ``scenario`` for its preset, seeded as ``run_mission`` seeds it, for a flight whose
-        pipeline runs elsewhere (``alight sitl``): the preset is built only for its camera, pad, mount
-        and rate gains."""
-        from alight.airframes import load_airframe
-        from alight.mission.presets import build_preset
-
-        if airframe is None:
-            airframe = load_airframe(scenario.airframe)
-        seeds = mission_seeds(scenario.seed)
-        preset = build_preset(scenario, airframe, np.random.default_rng(seeds[SEED_PIPELINE]))
-        return cls(scenario, airframe, preset, seeds)
 
     # -- stepping ----------------------------------------------------------------------------------------
     @property
