@@ -141,8 +141,7 @@ def _schedules(f: _Flight) -> tuple[_Schedule, _Schedule]:
     after_ego: list[tuple[int, Handler]] = [
         (_ticks(RATES_HZ["range"]), f.range),
         (f.world.flow_every_ticks, f.flow),  # 0: no optical-flow module
-        (1, f.telemetry),
-        (1, f.camera),
+        (1, f.arrivals),
         (max(1, _ticks(f.planner_rate_hz)), f.decide),
         (_ticks(RATES_HZ["control"]), f.control),
         (f.every_log, f.motors),
@@ -159,6 +158,7 @@ def _fly(f: _Flight, before_ego: _Schedule, after_ego: _Schedule) -> None:
     world, pipeline = f.world, f.pipeline
     early, n_early = before_ego.phases, before_ego.period
     late, n_late = after_ego.phases, after_ego.period
+    ego_ready = False  # an ego estimate once initialised stays so (EgoEkf has no way back): asked until then
     for k in range(1, world.n_ticks + 1):
         # an abort's descent ends on the ground (or wherever it is): there a touch is its safe end
         world.ground_ok = world.aborting and pipeline.in_final_descent
@@ -168,8 +168,10 @@ def _fly(f: _Flight, before_ego: _Schedule, after_ego: _Schedule) -> None:
         pipeline.on_imu(world.t, imu_out[0:3], imu_out[3:6])
         for handler in early[k % n_early]:
             handler(k)
-        if not pipeline.ego_initialized:
-            continue
+        if not ego_ready:
+            ego_ready = pipeline.ego_initialized
+            if not ego_ready:
+                continue
         for handler in late[k % n_late]:
             if handler(k):
                 return
@@ -221,12 +223,11 @@ class _Flight:
         if flow is not None:
             self.pipeline.on_flow(flow.t, flow.flow_B_rad_s, flow.distance_m)
 
-    def telemetry(self, k: int) -> None:
-        for fix in self.world.telemetry_arrivals():
-            self.pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
-
-    def camera(self, k: int) -> None:
+    def arrivals(self, k: int) -> None:
+        """What arrives at any tick: the platform's telemetry fixes, then the camera's frames."""
         world = self.world
+        for fix in world.telemetry_arrivals():
+            self.pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
         world.capture()
         for t_cap, frame in world.deliveries():
             if self.camera_frames:
