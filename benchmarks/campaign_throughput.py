@@ -125,7 +125,7 @@ def main() -> None:
 
     # numba's cache filled once, in its own process (it is the first run's cost, not a campaign's)
     code = (
-        "import json, sys; from alight.warmup import warm_up; r = warm_up(sys.argv[1].split(',')); "
+        "import json, sys; from alight.compile.warmup import warm_up; r = warm_up(sys.argv[1].split(',')); "
         "print(json.dumps({'wall_s': r.wall_s, 'compile_s': r.compile_s}))"
     )
     warm = subprocess.run(

@@ -87,7 +87,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     subprocess.run(
-        [sys.executable, "-c", "from alight.warmup import warm_up; warm_up(['falanga2017'])"], check=True
+        [sys.executable, "-c", "from alight.compile.warmup import warm_up; warm_up(['falanga2017'])"],
+        check=True,
     )
     with tempfile.TemporaryDirectory(prefix="alight-views-bench-") as tmp:
         runs = [

@@ -11,20 +11,20 @@ new, empty directory:
   ``warm``: again with the cache the first one left. The README's first command compiles the same
   signatures: its warm-up compiles them all, and the mission after it none.
 - ``presets``: for each preset (default all five), a process with its own empty cache flies the preset's
-  warm-up (``alight.warmup.warm_up``, what ``alight fly`` and a campaign's sandbox run before any
+  warm-up (``alight.compile.warmup.warm_up``, what ``alight fly`` and a campaign's sandbox run before any
   mission's clock starts): the cold compile of that preset. ``cold`` compiles in the flight alone
   (``compile_first=False``); ``cold_parallel`` as ``alight fly`` does, the listed kernels first in
-  parallel helper processes (``alight.parallel_compile``; ``ahead`` says what they did: their CPU time
+  parallel helper processes (``alight.compile.parallel``; ``ahead`` says what they did: their CPU time
   is in ``cpu_s``, not in ``compile_s``, which is this process's own).
 
-``compile_s`` is the CPU time numba spent compiling (``alight.warmup.compile_meter``: outermost compiles
-only, cache loads excluded; CPU rather than wall time, so other work on the machine does not inflate it),
-``signatures`` the signatures compiled, ``top`` the kernels that dominate, ``cpu_s``/``wall_s`` the
-whole child process (imports included). ``mission_wall_s`` is the mission's ``wall_time_s``: it includes
+``compile_s`` is the CPU time numba spent compiling (``alight.compile.meter.compile_meter``: outermost
+compiles only, cache loads excluded; CPU rather than wall time, so other work on the machine does not
+inflate it), ``signatures`` the signatures compiled, ``top`` the kernels that dominate, ``cpu_s``/``wall_s``
+the whole child process (imports included). ``mission_wall_s`` is the mission's ``wall_time_s``: it includes
 the compile here because this benchmark flies without a warm-up, as a measurement of the compile.
 
 ``--functions PRESET``: the process compiles the preset's listed kernels (the list
-``alight.parallel_compile`` keeps) and reports every numba function compiled, callees and numba's own
+``alight.compile.parallel`` keeps) and reports every numba function compiled, callees and numba's own
 overloads (``np.empty``'s) included, by the CPU time of its own compiles with its callees' nested
 compiles taken out (``exclusive_s``; the meter's ``by_function``), with ``inclusive_s`` and
 ``signatures``; ``functions`` says how many there were. With ``--opt``, the same compile runs again at
@@ -45,12 +45,12 @@ from typing import Any
 
 _CHILD = """
 import json, sys, time
-from alight.warmup import compile_meter, warm_up
+from alight.compile.warmup import compile_meter, warm_up
 what, arg = sys.argv[1], sys.argv[2]
 out = {}
 with compile_meter() as m:
     if what == "functions":
-        from alight.parallel_compile import _dispatcher, parse_signature, read_manifest
+        from alight.compile.parallel import _dispatcher, parse_signature, read_manifest
         kernels = [k for k in read_manifest() if arg in k.presets]
         for k in kernels:
             _dispatcher(k).compile(parse_signature(k.signature))
@@ -100,7 +100,7 @@ def _child(what: str, arg: str, cache: str, opt: str | None = None) -> dict[str,
 
 def functions(preset: str, top: int, opts: list[str]) -> dict[str, Any]:
     """Where ``preset``'s compile goes, function by function (``--functions``)."""
-    from alight.parallel_compile import read_manifest
+    from alight.compile.parallel import read_manifest
 
     if not any(preset in k.presets for k in read_manifest()):
         raise SystemExit(f"numba_compile: no listed kernel for preset {preset!r}")

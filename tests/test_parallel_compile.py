@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-import alight.parallel_compile as pc
-from alight.parallel_compile import MANIFEST, Kernel, _balanced, compile_ahead, parse_signature, read_manifest
+import alight.compile.parallel as pc
+from alight.compile.parallel import MANIFEST, Kernel, _balanced, compile_ahead, parse_signature, read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -62,9 +62,9 @@ def warm_up_calls() -> dict[str, Any]:
         import json
         from alight.errors import ConfigError
         from alight.evaluation.runner import run_mission
-        from alight.parallel_compile import python_calls
+        from alight.compile.meter import python_calls
         from alight.scenario import scenario_from_dict
-        from alight.warmup import warm_up
+        from alight.compile.warmup import warm_up
         seen, after = {{}}, {{}}
         with python_calls() as calls:
             for preset in {presets!r}:
@@ -95,7 +95,7 @@ def test_the_kernel_list_is_what_each_presets_warm_up_flight_calls_from_python(
 ) -> None:
     # A later preset that calls a kernel signature again is not seen, so each recorded signature must
     # list at least the preset that first called it. Nothing recorded may be missing from the list, and
-    # nothing listed may be stale. Regenerate with: python -m alight.parallel_compile --write
+    # nothing listed may be stale. Regenerate with: python -m alight.compile.kernel_list --write
     listed = {(k.module, k.qualname, k.signature): k for k in read_manifest()}
     recorded = set()
     for preset, calls in warm_up_calls["seen"].items():
@@ -163,7 +163,7 @@ def test_helpers_fill_an_empty_cache_and_a_filled_one_starts_none(tmp_path: Path
     script = textwrap.dedent(f"""
         import json
         from pathlib import Path
-        from alight.parallel_compile import _cached, compile_ahead, read_manifest
+        from alight.compile.parallel import _cached, compile_ahead, read_manifest
         kernels = read_manifest(Path({str(small)!r}))
         before = [_cached(k) for k in kernels]
         first = compile_ahead(["alight"], max_helpers=2, kernels_file=Path({str(small)!r}))
@@ -240,7 +240,7 @@ def test_a_helper_ends_when_its_parent_is_killed(tmp_path: Path) -> None:
     parent_code = textwrap.dedent(
         f"""
         import subprocess, sys, time
-        cmd = [sys.executable, "-m", "alight.parallel_compile", "--helper", {str(share)!r}]
+        cmd = [sys.executable, "-m", "alight.compile.parallel", "--helper", {str(share)!r}]
         print(subprocess.Popen(cmd).pid, flush=True)
         time.sleep(60)
         """

@@ -10,7 +10,7 @@ import pytest
 
 import alight.campaign.run as campaign_run
 from alight.campaign.spec import campaign_from_dict, load_campaign
-from alight.warmup import presets_to_warm_up
+from alight.compile.warmup import presets_to_warm_up
 
 ROOT = Path(__file__).parents[1]
 

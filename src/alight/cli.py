@@ -72,7 +72,7 @@ def _warm_up_before_the_clock(scenario: Any) -> None:
     """Compile (or load from numba's cache) the kernels of the scenario's preset and of its blocks (the
     presets that fly them) before the mission's clock starts, so ``wall_time_s`` and the block times in
     result.json hold no compile; says on stderr what it took."""
-    from alight.warmup import presets_to_warm_up, warm_up
+    from alight.compile.warmup import presets_to_warm_up, warm_up
 
     presets = presets_to_warm_up([scenario.model_dump(mode="json")])
     preset = ", ".join(presets)

@@ -7,8 +7,8 @@ from typing import Any
 
 import pytest
 
+import alight.compile.warmup as warmup
 import alight.evaluation.mission_io as mission_io
-import alight.warmup as warmup
 from alight.cli import main
 
 ROOT = Path(__file__).parents[2]

@@ -1,4 +1,4 @@
-"""numba's cache directory is keyed by the whole package's source (alight/numba_cache.py): numba alone
+"""numba's cache directory is keyed by the whole package's source (alight/compile/cache.py): numba alone
 would keep a kernel's machine code after a change to a kernel it calls in another file."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from alight import numba_cache
-from alight.numba_cache import cache_dir, source_key
+from alight.compile import cache as numba_cache
+from alight.compile.cache import cache_dir, source_key
 
 
 def _tree(root: Path, files: dict[str, str]) -> Path:

@@ -32,12 +32,12 @@ def test_nothing_in_the_simulator_or_the_runner_switches_the_motors_off() -> Non
             assert not re.search(r"motors_on\s*=\s*False", text), path
             assert "IN_MOTORS_ON] = 0" not in text, path
     # the world writes what it is commanded, and the runner commands only what the pipeline says
-    world = (SRC / "evaluation" / "world.py").read_text()
+    world = (SRC / "sim" / "world.py").read_text()
     assert world.count("inputs[IN_MOTORS_ON] =") == 1
     assert "inputs[IN_MOTORS_ON] = 1.0 if motors_on else 0.0" in world
     runner = (SRC / "evaluation" / "runner.py").read_text()
     assert runner.count("world.set_command(") == 1
-    assert "world.set_command(thrust_N, w_cmd, not cmd.motors_off)" in runner
+    assert "world.set_command(self.thrust_N, self.w_cmd, not cmd.motors_off)" in runner
 
 
 @pytest.mark.slow

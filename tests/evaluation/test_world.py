@@ -1,21 +1,21 @@
-"""The one simulated world (``evaluation/world.py``) that ``run_mission`` and ``alight sitl`` step."""
+"""The one simulated world (``sim/world.py``) that ``run_mission`` and ``alight sitl`` step."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from alight.evaluation.result import MissionResult
-from alight.evaluation.runner import run_mission
-from alight.evaluation.world import TICK_DT, World, mission_seeds
+from alight.evaluation.runner import run_mission, world_for_scenario
 from alight.scenario import Scenario
 from alight.sim.quadrotor import SL_P
+from alight.sim.world import TICK_DT, mission_seeds
 
 BASE = {"preset": "groundtruth", "seed": 5, "duration_s": 3.0}
 
 
 def test_verdict_is_in_every_result_and_covers_the_judged_columns() -> None:
     s = Scenario.model_validate(BASE)
-    verdict = World.for_scenario(s).verdict()
+    verdict = world_for_scenario(s).verdict()
     result = run_mission(s, record=False).result
     assert set(verdict) <= set(result)
     judged = {"outcome", "success", "touchdown_error_m", "touchdown_rel_speed_mps", "time_to_land_s"}
@@ -33,7 +33,7 @@ def test_seed_children_are_independent_of_their_number() -> None:
 def test_world_stands_still_without_a_command_and_times_out() -> None:
     """Nothing in the world starts or stops the motors: left alone, the vehicle stands where it was put,
     the ticks advance at the IMU period, and the mission ends as a timeout."""
-    world = World.for_scenario(Scenario.model_validate(BASE))
+    world = world_for_scenario(Scenario.model_validate(BASE))
     p0 = world.x[SL_P].copy()
     while not world.done:
         imu = world.step()

@@ -21,7 +21,7 @@ from tests_interfaces_ports import free_port_pair  # noqa: E402
 from alight.airframe import DEFAULT_AIRFRAME  # noqa: E402
 from alight.airframes import load_airframe  # noqa: E402
 from alight.errors import InputError  # noqa: E402
-from alight.evaluation.world import World  # noqa: E402
+from alight.evaluation.runner import world_for_scenario  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import SocketCameraSource  # noqa: E402
 from alight.interfaces.sitl import (  # noqa: E402
@@ -34,6 +34,7 @@ from alight.interfaces.sitl import (  # noqa: E402
 )
 from alight.scenario import Scenario  # noqa: E402
 from alight.sim.quadrotor import IX_F, SL_P, SL_Q, SL_V  # noqa: E402
+from alight.sim.world import World  # noqa: E402
 from alight.types import quat_to_rotmat  # noqa: E402
 
 
@@ -55,7 +56,7 @@ def test_mode_numbers_round_trip(flavour: str) -> None:
 
 def test_position_controller_takes_off_and_holds_a_point() -> None:
     scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 10.0, "seed": 2})
-    world = World.for_scenario(scenario)
+    world = world_for_scenario(scenario)
     goal = np.array([1.0, -1.0, 3.0])
     for k in range(8 * 200):
         if k % 2 == 0:
@@ -313,7 +314,7 @@ def test_world_cuts_no_motor_and_judges_after_settling() -> None:
     stops them); a descent the failsafe ends on the ground is judged ``aborted`` once settled after the
     disarm; motors stopped in the air end in a judged crash."""
     base = {"preset": "groundtruth", "duration_s": 20.0, "seed": 4, "contact": {"settle_s": 1.0}}
-    world = World.for_scenario(Scenario.model_validate(base))
+    world = world_for_scenario(Scenario.model_validate(base))
     assert world.airframe == load_airframe("f450")  # the scenario's airframe
     gear = world.airframe.gear_height
     _climb_then(world, np.array([0.0, 0.0, 1.5]), 3.0)
@@ -330,7 +331,7 @@ def test_world_cuts_no_motor_and_judges_after_settling() -> None:
     assert world.t == pytest.approx(t_off + 1.0, abs=0.006)
     assert world.final_outcome.value == "aborted" and world.t_motors_off == t_off
 
-    world = World.for_scenario(Scenario.model_validate(base))
+    world = world_for_scenario(Scenario.model_validate(base))
     _climb_then(world, np.array([0.0, 0.0, 3.0]), 3.0)
     world.set_command(0.0, np.zeros(3), False)  # motors off in the air: it falls
     while not world.done:

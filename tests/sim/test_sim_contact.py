@@ -1,5 +1,5 @@
 """The contact model of the feet with the deck and the ground (sim.quadrotor.step_contact, run through
-the fused 1 kHz loop of evaluation.physics): rest, impact, bounce, friction, a braking deck, stability."""
+the fused 1 kHz loop of sim.physics): rest, impact, bounce, friction, a braking deck, stability."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from numba import njit
 
 from alight.airframe import DEFAULT_AIRFRAME as AF
 from alight.control.rate import pack_low_level_params
-from alight.evaluation.physics import IN_DECK, IN_MOTORS_ON, IN_THRUST, N_IN, tick_batch
 from alight.sim import quadrotor as Q
+from alight.sim.physics import IN_DECK, IN_MOTORS_ON, IN_THRUST, N_IN, tick_batch
 
 PAR = Q.pack_params(AF)
 LL = pack_low_level_params(AF)

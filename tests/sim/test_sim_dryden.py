@@ -16,7 +16,6 @@ import pytest
 from scipy import linalg, signal
 
 from alight.airframes import load_airframe
-from alight.evaluation.world import make_wind
 from alight.scenario import scenario_from_dict
 from alight.sim.wind import (
     TURBULENCE_W20_MPS,
@@ -28,6 +27,7 @@ from alight.sim.wind import (
     dryden_low_altitude,
     dryden_transfer_function,
 )
+from alight.sim.world import make_wind
 
 DT = 0.01
 

@@ -169,8 +169,8 @@ def test_the_deck_velocity_under_the_feet_is_recovered_with_the_lever_arm(
 
 def _world_and_pipeline_mounts(optical_flow: dict[str, object]) -> tuple[object, object]:
     from alight.airframes import load_airframe
-    from alight.evaluation.world import SEED_PIPELINE, World, mission_seeds
     from alight.mission.presets import build_preset
+    from alight.sim.world import SEED_PIPELINE, World, mission_seeds
 
     s = scenario_from_dict({"optical_flow": optical_flow})
     airframe = load_airframe(s.airframe)

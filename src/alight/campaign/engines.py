@@ -40,9 +40,9 @@ worker killed with its process group, or before its sandbox learnt the directory
 pid, not the sandbox's, names the directory, because the owner exists before the sandbox and outlives it.
 
 A sandbox running the default mission function (or its views variant, ``fly_mission_views``) warms up
-before it reports ready (:func:`alight.warmup.warm_up`: a short flight of each of the campaign's presets
-compiles every numba kernel they use), so compile time never lands in a mission's ``wall_time_s``, block
-timers or deadline.
+before it reports ready (:func:`alight.compile.warmup.warm_up`: a short flight of each of the campaign's
+presets compiles every numba kernel they use), so compile time never lands in a mission's ``wall_time_s``,
+block timers or deadline.
 
 Sandboxes need ``fork``/``exec`` with inherited file descriptors (``pass_fds``): Linux and macOS.
 
@@ -291,7 +291,7 @@ def _serve(
     if warmup:
         # Compile before "ready": a mission's clocks and deadline start after this. A preset whose
         # warm-up flight fails is not fatal: its missions will say what is wrong, each in its own row.
-        from alight.warmup import warm_up
+        from alight.compile.warmup import warm_up
 
         try:
             report = warm_up(warmup)
@@ -499,7 +499,7 @@ class LocalEngine:
         self.workers = n
         self.fn_spec = fn_spec
         self.warmup = warmup
-        """Presets each sandbox warms up before it reports ready (see alight.warmup)."""
+        """Presets each sandbox warms up before it reports ready (see alight.compile.warmup)."""
         self.memory_limit_mib = _check_limit(memory_limit_mib)
         """A sandbox whose resident-memory high-water mark is over this after a mission is replaced by a
         fresh one (None: never)."""

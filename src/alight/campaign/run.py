@@ -50,9 +50,9 @@ from alight.campaign.store import (
     write_mission_dir,
 )
 from alight.campaign.summary import write_summary
+from alight.compile.warmup import presets_to_warm_up
 from alight.errors import AlightError, ConfigError, InputError
 from alight.evaluation.result import OUTCOMES
-from alight.warmup import presets_to_warm_up
 
 # The result fields a row copies from result.json: the store's columns but those the run sets itself.
 _RESULT_KEYS = tuple(

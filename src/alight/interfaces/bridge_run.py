@@ -75,7 +75,7 @@ def run_bridge(
         # Compile the pipeline's numba kernels before taking the link: a first compile takes tens of
         # seconds on a fresh install, during which a companion would not answer the autopilot (a lost
         # offboard stream) or, in lockstep with the emulator, would let its world run on without us.
-        from alight.warmup import presets_to_warm_up, warm_up
+        from alight.compile.warmup import presets_to_warm_up, warm_up
 
         warm_up(presets_to_warm_up([scenario.model_dump(mode="json")]))
         conn = open_link(connect)
@@ -197,7 +197,7 @@ def _outputs(
         err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
         err = err[np.isfinite(err)]
         rmse = float(np.sqrt(np.mean(err**2))) if err.size else None
-    stats = pipe.stats
+    stats, summary = pipe.stats, pipe.summary()
     v = verdict or {}
     outcome = v.get("outcome")
     if bridge.phase is Phase.LINK_LOST and outcome is None:
@@ -217,7 +217,7 @@ def _outputs(
         "contact_reason": v.get("contact_reason"),
         "outcome_reason": v.get("outcome_reason"),
         "time_first_contact_s": v.get("time_first_contact_s"),
-        "time_touchdown_onboard_s": pipe.touchdown.t_landed,
+        "time_touchdown_onboard_s": summary.time_touchdown_onboard_s,
         "time_motors_off_s": v.get("time_motors_off_s"),
         "bounces": v.get("bounces"),
         "time_first_detection_s": stats.t_first_detection,
@@ -228,14 +228,14 @@ def _outputs(
         "frames_processed": stats.frames,
         "detections": stats.measurements,
         "rejected_measurements": stats.rejected_measurements,
-        "go_arounds": pipe.mission.go_arounds,
-        "final_mode": pipe.status.mode.value,
+        "go_arounds": summary.go_arounds,
+        "final_mode": summary.final_mode.value,
         "platform_estimate_rmse_m": rmse,
         "simulated_time_s": v.get("simulated_time_s"),
         "wall_time_s": wall_s,
         "block_time_s": {k: round(x, 6) for k, x in stats.block_time_s.items()},
         "alight_version": alight.__version__,
-        "mode_history": [{"t": t, "mode": m.value, "reason": why} for t, m, why in pipe.mission.history],
+        "mode_history": [{"t": t, "mode": m.value, "reason": why} for t, m, why in summary.mode_history],
         "bridge": {
             "mode": config.mode,
             "autopilot": config.autopilot,

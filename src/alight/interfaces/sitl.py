@@ -2,7 +2,7 @@
 
 ``alight sitl SCENARIO.yaml --port PORT`` runs the scenario's world (the same airframe, quadrotor with its
 contact model, rate loop, wind, platform, sensors, faults, renderer and outcome judging as ``alight fly``:
-the one :class:`~alight.evaluation.world.World` that ``run_mission`` steps too) and speaks MAVLink 2
+the one :class:`~alight.sim.world.World` that ``run_mission`` steps too) and speaks MAVLink 2
 like a PX4 (or, with ``flavour="ardupilot"``, an ArduCopter) flight controller would on its
 companion-computer link. ``alight bridge`` connects to it and flies.
 
@@ -111,7 +111,7 @@ import alight  # noqa: E402
 from alight.airframe import Airframe  # noqa: E402
 from alight.energy import flight_energy_J  # noqa: E402
 from alight.errors import ConfigError, InputError  # noqa: E402
-from alight.evaluation.world import TICK_DT, Shot, World  # noqa: E402
+from alight.evaluation.runner import world_for_scenario  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, encode_message  # noqa: E402
 from alight.scenario import Scenario  # noqa: E402
@@ -123,6 +123,7 @@ from alight.sim.quadrotor import (  # noqa: E402
     SL_W,
 )
 from alight.sim.sensors import RangeFinderConfig  # noqa: E402
+from alight.sim.world import TICK_DT, Shot  # noqa: E402
 from alight.types import FloatArray, quat_to_rotmat, yaw_of  # noqa: E402
 
 CONTROL_DT = 0.01  # the autopilot's position loop and the lockstep period (s)
@@ -333,7 +334,7 @@ def position_control(
 
 
 class EmulatedAutopilot:
-    """The MAVLink endpoint and the autopilot's logic around a :class:`~alight.evaluation.world.World`."""
+    """The MAVLink endpoint and the autopilot's logic around a :class:`~alight.sim.world.World`."""
 
     def __init__(self, scenario: Scenario, config: SitlConfig, airframe: Airframe | None = None) -> None:
         if config.flavour not in ("px4", "ardupilot"):
@@ -346,7 +347,7 @@ class EmulatedAutopilot:
             # likewise: the emulator does not send OPTICAL_FLOW_RAD
             raise ConfigError("optical_flow: not available through alight sitl (no MAVLink stream)")
         self.config = config
-        self.world = World.for_scenario(scenario, airframe)
+        self.world = world_for_scenario(scenario, airframe)
         self.airframe = self.world.airframe
         try:
             self.conn = mavutil.mavlink_connection(

@@ -15,17 +15,18 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from alight.control import TiltLimited
+from alight.energy import QosEnergyModel
 from alight.estimation import EgoFed, PixelMeasured, PositionResetting, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
 from alight.estimation.optical_flow import horizontal_slip_W, module_velocity_W
 from alight.mission.guidance import Guidance
-from alight.mission.state_machine import Mission, MissionStatus
+from alight.mission.state_machine import FailsafeEvent, Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
 from alight.perception import FrameGate, ModeAware, PixelGated, RangeAware, TiltAware
 from alight.perception.geolocation import pad_centre_pixel
@@ -50,6 +51,45 @@ if TYPE_CHECKING:  # the Protocols, for annotations only
 _ZERO3 = np.zeros(3)
 FLOW_MAX_AGE_S = 0.1
 """An optical-flow sample older than this (s) is not read (a module at 50 Hz gives five in that time)."""
+FINAL_DESCENT_PHASES = ("descend", "done")
+"""The final action's phases that descend to a touchdown: the land detector runs, and touching the ground
+is the descent's end."""
+
+
+@runtime_checkable
+class ComputeMetered(Protocol):
+    """A detector that meters its own compute: the frames it processed and their energy under a
+    quality-of-service energy model (``perception/qos_detector.py``)."""
+
+    @property
+    def frames_processed(self) -> int: ...
+
+    def energy_J(self, model: QosEnergyModel, duration_s: float = 0.0) -> float: ...
+
+
+@dataclass(frozen=True)
+class PipelineSummary:
+    """What the onboard software reports of a flight when it ends (``result.json``'s pipeline fields)."""
+
+    time_touchdown_onboard_s: float | None
+    """When the land detector decided the touchdown."""
+    time_first_detection_s: float | None
+    time_landing_start_s: float | None
+    frames_processed: int
+    """Frames the detector processed (its own count when it meters itself, else the frames handed it)."""
+    energy_compute_J: float | None
+    """The detector's compute energy under the preset's energy model (None without one)."""
+    detections: int
+    rejected_measurements: int
+    go_arounds: int
+    target_losses: int
+    abort_reason: str | None
+    failsafe_events: tuple[FailsafeEvent, ...]
+    final_mode: Mode
+    block_time_s: dict[str, float]
+    """Wall time per block (s), :data:`BLOCKS`."""
+    mode_history: tuple[tuple[float, Mode, str], ...]
+    """(time, mode entered, why), in order."""
 
 
 class EgoHistory:
@@ -179,6 +219,8 @@ class Pipeline:
         """``flow_origin_B``: where an optical-flow module sits in B (m), as PX4's ``EKF2_OF_POS_X/Y/Z``
         give it; the feet's velocity is the body's plus the lever arm's, w x r."""
         self.ego_estimator = ego_estimator
+        # an estimator that restarts at a jumped odometry pose reports the jumps to hand on one frame
+        self._resets_position = isinstance(ego_estimator, PositionResetting)
         self.flow_origin_B = (float(flow_origin_B[0]), float(flow_origin_B[1]), float(flow_origin_B[2]))
         self.detector = detector
         self.geolocator = geolocator
@@ -444,7 +486,7 @@ class Pipeline:
             ego = self.ego_estimator.state()
             # PositionResetting: the estimator restarted at a jumped odometry pose; hand on one continuous
             # frame, in which the platform estimate, the plan and the pose history stay where they were
-            d = getattr(self.ego_estimator, "reset_delta_p_WB", None)
+            d = self.ego_estimator.reset_delta_p_WB if self._resets_position else None
             if d is not None and any(d.tolist()):  # numpy's any() costs a microsecond per call here
                 ego = EgoState.trusted(ego.t, ego.p_WB - d, ego.v_WB, ego.q_WB, ego.w_WB_B, ego.a_WB)
             self._ego = ego
@@ -553,7 +595,59 @@ class Pipeline:
     def _detector_armed(self) -> bool:
         """The land detector runs during a descent: the landing, and a final action's descent."""
         mode = self.status.mode
-        return mode is Mode.LAND or (mode is Mode.ABORT and self.mission.abort_phase in ("descend", "done"))
+        return mode is Mode.LAND or (mode is Mode.ABORT and self.mission.abort_phase in FINAL_DESCENT_PHASES)
+
+    # -- status for the driver ------------------------------------------------------------------------------
+    @property
+    def ego_initialized(self) -> bool:
+        """The ego estimator has its first pose (from the first odometry message)."""
+        return self.ego_estimator.initialized
+
+    @property
+    def fuses_telemetry(self) -> bool:
+        """The platform estimator fuses the platform's own GNSS fixes (:meth:`on_telemetry`)."""
+        return self._fuses_telemetry
+
+    @property
+    def final_action_lands(self) -> bool:
+        """The mission's final action (after an abort) ends on the ground, not in a hover."""
+        return self.mission.config.final_action != "hover"
+
+    @property
+    def in_final_descent(self) -> bool:
+        """The final action is in its descent (or done): a touch of the ground is its end."""
+        return self.mission.abort_phase in FINAL_DESCENT_PHASES
+
+    @property
+    def final_action_complete(self) -> bool:
+        """The final action has completed (a hover held at its hold point, or its descent ended)."""
+        return self.mission.final_action_complete
+
+    def summary(self, energy_model: QosEnergyModel | None = None, duration_s: float = 0.0) -> PipelineSummary:
+        """What the flight's pipeline reports (:class:`PipelineSummary`); ``energy_model``: the preset's
+        compute-energy model, for a detector that meters itself, over ``duration_s`` (s)."""
+        stats, mission, detector = self.stats, self.mission, self.detector
+        metered = detector if isinstance(detector, ComputeMetered) else None
+        return PipelineSummary(
+            time_touchdown_onboard_s=self.touchdown.t_landed,
+            time_first_detection_s=stats.t_first_detection,
+            time_landing_start_s=stats.t_landing_start,
+            frames_processed=stats.frames if metered is None else metered.frames_processed,
+            energy_compute_J=(
+                None
+                if energy_model is None or metered is None
+                else metered.energy_J(energy_model, duration_s=duration_s)
+            ),
+            detections=stats.measurements,
+            rejected_measurements=stats.rejected_measurements,
+            go_arounds=mission.go_arounds,
+            target_losses=mission.target_losses,
+            abort_reason=mission.abort_reason,
+            failsafe_events=tuple(mission.events),
+            final_mode=self.status.mode,
+            block_time_s=dict(stats.block_time_s),
+            mode_history=tuple(mission.history),
+        )
 
     def _touchdown_step(
         self, t: float, ego: EgoState, target: PlatformEstimate | None, cmd: Command

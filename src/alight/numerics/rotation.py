@@ -15,7 +15,7 @@ Kernels and their Python twins: the kernels here are ``@njit`` and may be called
 Python caller of a *leaf* kernel (one that calls no other kernel) calls its ``py_func``, the same source
 run by the interpreter: on a handful of floats numba's dispatch costs more than the arithmetic, and a
 Python call into a kernel would make it one of the warm-up's outermost kernels
-(:mod:`alight.parallel_compile`). Both execute the same IEEE double operations in the same order
+(:mod:`alight.compile.parallel`). Both execute the same IEEE double operations in the same order
 (numba compiles without fast-math, so nothing is fused), hence the same bits; the tests check it.
 Hand-written rather than ``scipy.spatial.transform`` because these run at 200 Hz-1 kHz on single
 vectors, where SciPy's object construction costs ~20x the arithmetic.

@@ -12,7 +12,7 @@ toward the take-off point, so the flight goes through take-off, exploration, det
 landing and the touchdown (a 12 s flight that stopped on the approach left the exploration's kernels to
 compile in the middle of the first missions that searched, on their clocks). What one flight cannot be
 relied on to meet is called directly: here the kernels of every platform path, which the scenario
-chooses (:func:`alight.evaluation.world.call_every_platform_path`); a block's rare branch by the block
+chooses (:func:`alight.sim.world.call_every_platform_path`); a block's rare branch by the block
 itself when it is built (the falanga tag detector's cross, taken only when the circle is not found). Its
 results are thrown away; it changes no state that a later mission sees (every mission builds its own
 world and pipeline from its scenario). ``tests/test_parallel_compile.py`` flies missions after the
@@ -20,27 +20,24 @@ warm-ups and fails on any kernel signature they call first.
 
 Every ``@njit`` in alight has ``cache=True``, so the compile happens once per install: later processes
 load the machine code from numba's cache (milliseconds per kernel). The cache directory is keyed by the
-whole package's source (:mod:`alight.numba_cache`): numba by itself keeps a kernel's code after a change
+whole package's source (:mod:`alight.compile.cache`): numba by itself keeps a kernel's code after a change
 to a kernel it calls from another file, so any change of alight's source starts a fresh cache.
 
 On an empty cache, the kernels the flight calls from Python are first compiled in parallel processes
-(:mod:`alight.parallel_compile`), since numba compiles one kernel at a time; the flight then loads them.
+(:mod:`alight.compile.parallel`), since numba compiles one kernel at a time; the flight then loads them.
 """
 
 from __future__ import annotations
 
 import json
-import threading
 import time
-from collections.abc import Iterable, Iterator, Mapping
-from contextlib import contextmanager
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
 
+from alight.compile.meter import compile_meter
+from alight.compile.parallel import CompileAheadReport, compile_ahead
 from alight.errors import AlightError
-
-if TYPE_CHECKING:
-    from alight.parallel_compile import CompileAheadReport
 
 WARMUP_DURATION_S = 60.0
 """Most simulated seconds of a warm-up flight. It ends when the vehicle has landed: after 28-34 s, 49 s for
@@ -56,78 +53,6 @@ _WARMUP_BASE: dict[str, Any] = {
 }
 
 
-@dataclass
-class FunctionCompile:
-    """The compiles of one numba function (a kernel, a callee it pulled in, or an overload of numba's own
-    such as ``np.empty``'s) seen by a :func:`compile_meter`."""
-
-    exclusive_s: float = 0.0
-    """CPU time (s) of its own compiles, the nested compiles of its callees taken out: where the compile
-    goes, function by function (the exclusive times of all functions add up to ``compile_s``)."""
-    inclusive_s: float = 0.0
-    """CPU time (s) of its compiles with their nested compiles (a function compiled inside another's
-    compile is counted in both)."""
-    signatures: int = 0
-    """Signatures compiled (cache misses)."""
-
-
-@dataclass
-class CompileMeter:
-    """numba compile work seen while the meter is installed (see :func:`compile_meter`)."""
-
-    compile_s: float = 0.0
-    """CPU time (s, this process) spent compiling, outermost compiles only (a kernel's callees are part of
-    its compile). CPU rather than wall time, so a busy machine does not inflate it."""
-    n_signatures: int = 0
-    """Signatures compiled, callees included (cache misses)."""
-    by_kernel: dict[str, float] = field(default_factory=dict)
-    """Outermost kernel ``module.qualname`` -> CPU seconds of its compile."""
-    by_function: dict[str, FunctionCompile] = field(default_factory=dict)
-    """Every function compiled, callees included, ``module.qualname`` -> its account."""
-
-
-@contextmanager
-def compile_meter() -> Iterator[CompileMeter]:
-    """Measure numba compiles in this process while the block runs (loads from the cache do not count:
-    numba signals ``numba:compile`` only on a cache miss). numba compiles a kernel's callees inside the
-    kernel's own compile, so the events nest: each open compile keeps its start and the CPU time of the
-    compiles nested in it."""
-    from numba.core import event
-
-    meter = CompileMeter()
-    stack: list[list[float]] = []  # per open compile: [CPU time at its start, CPU time of nested compiles]
-    lock = threading.Lock()
-
-    class _Listener(event.Listener):
-        def on_start(self, ev: Any) -> None:
-            with lock:
-                stack.append([time.process_time(), 0.0])
-
-        def on_end(self, ev: Any) -> None:
-            with lock:
-                t0, nested = stack.pop()
-                dt = time.process_time() - t0
-                fn = ev.data["dispatcher"].py_func
-                name = f"{fn.__module__}.{fn.__qualname__}"
-                account = meter.by_function.setdefault(name, FunctionCompile())
-                account.exclusive_s += dt - nested
-                account.inclusive_s += dt
-                account.signatures += 1
-                meter.n_signatures += 1
-                if stack:
-                    stack[-1][1] += dt
-                    return
-                meter.compile_s += dt
-                meter.by_kernel[name] = meter.by_kernel.get(name, 0.0) + dt
-
-    listener = _Listener()
-    event.register("numba:compile", listener)  # type: ignore[no-untyped-call]
-    try:
-        yield meter
-    finally:
-        event.unregister("numba:compile", listener)  # type: ignore[no-untyped-call]
-
-
 @dataclass(frozen=True)
 class WarmupReport:
     presets: tuple[str, ...]
@@ -138,7 +63,7 @@ class WarmupReport:
     n_signatures: int
     """Signatures compiled (0 with a warm cache)."""
     ahead: CompileAheadReport | None = None
-    """What was compiled in parallel helper processes before the flight (:mod:`alight.parallel_compile`);
+    """What was compiled in parallel helper processes before the flight (:mod:`alight.compile.parallel`);
     their CPU time is not in ``compile_s``."""
 
 
@@ -198,16 +123,15 @@ def presets_to_warm_up(scenarios: Iterable[Mapping[str, Any]]) -> tuple[str, ...
 def warm_up(presets: Iterable[str], *, compile_first: bool = True) -> WarmupReport:
     """Fly the warm-up mission of each preset (in the order given, each once); see the module docstring.
     With ``compile_first``, the listed kernels that numba's cache lacks are first compiled in parallel
-    processes (:func:`alight.parallel_compile.compile_ahead`). Raises what the mission raises (a preset
+    processes (:func:`alight.compile.parallel.compile_ahead`). Raises what the mission raises (a preset
     that cannot fly here cannot fly a campaign's missions either)."""
     from alight.evaluation.runner import run_mission
-    from alight.parallel_compile import compile_ahead
     from alight.scenario import scenario_from_dict
 
     names = tuple(dict.fromkeys(presets))
     t0 = time.perf_counter()
     ahead = compile_ahead(names) if compile_first else None
-    from alight.evaluation.world import call_every_platform_path
+    from alight.sim.world import call_every_platform_path
 
     with compile_meter() as meter:
         call_every_platform_path()
@@ -217,8 +141,8 @@ def warm_up(presets: Iterable[str], *, compile_first: bool = True) -> WarmupRepo
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m alight.warmup [PRESET ...]``: fill numba's cache for the presets (default: all) once,
-    e.g. right after installing, so no later process pays the compile; prints what it took as JSON."""
+    """``python -m alight.compile.warmup [PRESET ...]``: fill numba's cache for the presets (default: all)
+    once, e.g. right after installing, so no later process pays the compile; prints what it took as JSON."""
     import json
     import sys
 
@@ -228,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [n for n in names if n not in PRESETS]
     if unknown:
         print(
-            f"alight.warmup: unknown preset {unknown[0]!r}, expected one of {sorted(PRESETS)}",
+            f"alight.compile.warmup: unknown preset {unknown[0]!r}, expected one of {sorted(PRESETS)}",
             file=sys.stderr,
         )
         return 2

@@ -6,7 +6,7 @@ would not hand its pipeline: the truth of both vehicles, the contact with the de
 its judging, the sensors' and the camera's models with their faults.
 
 - Physics: the vehicle's rigid body, motors and the autopilot's 1 kHz body-rate loop in compiled
-  batches (``evaluation.physics.tick_batch``) that end at the 100 Hz command ticks, where the command
+  batches (``sim.physics.tick_batch``) that end at the 100 Hz command ticks, where the command
   can change, or earlier where a first contact is to be judged or an IMU bias step is due. Wind and
   the deck's state are stamped at each batch's start.
 - Contact: the feet on the moving deck and the ground are a spring-damper with friction inside the
@@ -30,14 +30,18 @@ import math
 import typing
 from collections import deque
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from alight.airframe import Airframe
-from alight.cameras.pinhole import camera_pose_W
-from alight.control.rate import pack_low_level_params
-from alight.evaluation.physics import (
+from alight.cameras import CameraModel
+from alight.cameras.pinhole import CameraMount, camera_pose_W
+from alight.control.rate import RateControllerGains, pack_low_level_params
+from alight.pads import PadDesign
+from alight.scenario import Scenario
+from alight.sim.faults import Faults, FrameFate, speed_profile
+from alight.sim.physics import (
     IN_DECK,
     IN_F_EXT,
     IN_MOTORS_ON,
@@ -47,8 +51,6 @@ from alight.evaluation.physics import (
     N_IN,
     tick_batch,
 )
-from alight.scenario import Scenario
-from alight.sim.faults import Faults, FrameFate, speed_profile
 from alight.sim.platform import PathKind, Platform, PlatformConfig, SpeedProfile
 from alight.sim.quadrotor import (
     CP_K,
@@ -95,9 +97,6 @@ from alight.sim.wind import (
 )
 from alight.types import EgoState, FloatArray, Observation, Outcome, quat_to_rotmat
 
-if TYPE_CHECKING:
-    from alight.mission.presets import Preset
-
 PHYSICS_DT = 0.001
 TICK_DT = 0.005  # the IMU period; every other rate is a multiple of it
 CONTROL_DT = 0.01  # the command ticks: a physics batch ends at each
@@ -120,7 +119,7 @@ def mission_seeds(seed: int) -> list[np.random.SeedSequence]:
 def call_every_platform_path() -> None:
     """Evaluate each platform path kind once (one time and many, with and without a speed profile), so
     that its kernels are compiled or loaded: which path a mission drives is its scenario's choice, and
-    a warm-up flight (``alight.warmup``) drives one."""
+    a warm-up flight (``alight.compile.warmup``) drives one."""
     ts = np.linspace(0.0, 2.0, 5)
     profile = SpeedProfile.brake_stop(1.0, t_s=0.5, decel_mps2=2.0, wait_s=0.5, accel_mps2=1.0)
     for path in typing.get_args(PathKind):
@@ -224,6 +223,39 @@ otherwise."""
 _NOTHING: tuple[()] = ()
 
 
+class VehicleSetup(Protocol):
+    """What the world simulates of the vehicle that flies in it, from the flying side's composition
+    (``alight.mission.presets.Preset`` is one): the world needs it for the camera's images and the
+    autopilot's rate loop, and nothing else of the pipeline."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def mount(self) -> CameraMount:
+        """The camera's pose on the body."""
+
+    @property
+    def rate_gains(self) -> RateControllerGains:
+        """The autopilot's body-rate loop, which the physics runs at 1 kHz."""
+
+    @property
+    def uses_camera(self) -> bool:
+        """Rendered camera frames (True) or the ground-truth sensor's observations."""
+
+    @property
+    def camera(self) -> CameraModel | None:
+        """The camera model to render through (required when ``uses_camera``)."""
+
+    @property
+    def pad(self) -> PadDesign | None:
+        """The pad drawn on the platform (required when ``uses_camera``)."""
+
+    @property
+    def color_camera(self) -> bool:
+        """The camera delivers colour (BGR) images unless the scenario says otherwise."""
+
+
 class World:
     """The world of ``scenario`` (module docstring), for the preset that will fly it.
 
@@ -237,7 +269,7 @@ class World:
         self,
         scenario: Scenario,
         airframe: Airframe,
-        preset: Preset,
+        preset: VehicleSetup,
         seeds: list[np.random.SeedSequence],
     ) -> None:
         s = scenario
@@ -249,32 +281,52 @@ class World:
         self.platform = place_platform(s, rng_place)
         self.wind = make_wind(s, rng_wind, airframe)
         self.windless = isinstance(self.wind, NoWind)
+        self._init_sensors(rng_imu, rng_odo, rng_range)
+        self._init_contact()
+        self._init_perception(preset, rng_perc, seeds[8])
+        self._init_platform_and_flow_sensors(seeds[9], seeds[10])
+        self._init_camera(preset, rng_render)
+        self._init_physics(preset)
+        self._init_flight()
+
+    def _init_sensors(
+        self, rng_imu: np.random.Generator, rng_odo: np.random.Generator, rng_range: np.random.Generator
+    ) -> None:
         self.imu = Imu(ImuConfig(), rng_imu)
         self.odometry = Odometry(OdometryConfig(), rng_odo)
-        rf = s.rangefinder
+        rf = self.scenario.rangefinder
         self.rangefinder = RangeFinder(
             RangeFinderConfig(
-                origin_B=airframe.feet_B,
+                origin_B=self.airframe.feet_B,
                 min_range_m=rf.min_range_m,
                 max_range_m=rf.max_range_m,
                 noise_std_m=rf.noise_m,
             ),
             rng_range,
         )
+
+    def _init_contact(self) -> None:
+        c = self.scenario.contact
         self.contact_params = pack_contact_params(
-            airframe,
-            stiffness_N_per_m=s.contact.stiffness_N_per_m,
-            damping_Ns_per_m=s.contact.damping_Ns_per_m,
-            friction=s.contact.friction,
-            gear_half_width_m=s.contact.gear_half_width_m,
+            self.airframe,
+            stiffness_N_per_m=c.stiffness_N_per_m,
+            damping_Ns_per_m=c.damping_Ns_per_m,
+            friction=c.friction,
+            gear_half_width_m=c.gear_half_width_m,
         )
         self.limits = ContactLimits(
-            gear_half_width=s.contact.gear_half_width_m,
-            max_vertical_speed_mps=s.contact.max_vertical_speed_mps,
-            max_horizontal_speed_mps=s.contact.max_horizontal_speed_mps,
-            max_tilt_deg=s.contact.max_tilt_deg,
+            gear_half_width=c.gear_half_width_m,
+            max_vertical_speed_mps=c.max_vertical_speed_mps,
+            max_horizontal_speed_mps=c.max_horizontal_speed_mps,
+            max_tilt_deg=c.max_tilt_deg,
         )
-        pc = s.perception
+
+    def _init_perception(
+        self, preset: VehicleSetup, rng_perc: np.random.Generator, seed_faults: np.random.SeedSequence
+    ) -> None:
+        """The ground-truth perception sensor and the faults on the data's way into the pipeline."""
+        s = self.scenario
+        pc, rf = s.perception, s.rangefinder
         self.truth_perception = TruthPerception(
             TruthPerceptionConfig(
                 rate_hz=pc.rate_hz,
@@ -292,7 +344,7 @@ class World:
         )
         self.faults = Faults(
             s.faults,
-            seeds[8],
+            seed_faults,
             camera=preset.uses_camera,
             latency_s=pc.latency_s,
             extra_dropout_prob=pc.dropout_prob,
@@ -300,10 +352,16 @@ class World:
             tick_dt=TICK_DT,
         )
         self.faults.check_preset(s.preset, preset.uses_camera)
+
+    def _init_platform_and_flow_sensors(
+        self, seed_telemetry: np.random.SeedSequence, seed_flow: np.random.SeedSequence
+    ) -> None:
+        """The platform's GNSS telemetry and the optical-flow module, when the scenario has them."""
+        s = self.scenario
         self.telemetry: PlatformTelemetry | None = None
         if s.platform.telemetry is not None:
             tel = s.platform.telemetry
-            self.telemetry = PlatformTelemetry(tel, np.random.default_rng(seeds[9]))
+            self.telemetry = PlatformTelemetry(tel, np.random.default_rng(seed_telemetry))
         self._tel_pending: deque[TelemetryFix] = deque()
         self.optical_flow: OpticalFlowSensor | None = None
         self.flow_every_ticks = 0
@@ -314,11 +372,14 @@ class World:
             spec = s.optical_flow
             flow = OpticalFlowConfig(
                 **spec.model_dump(exclude={"position_B_m"}),
-                origin_B=airframe.downward_sensor_B(spec.position_B_m, "optical_flow.position_B_m"),
+                origin_B=self.airframe.downward_sensor_B(spec.position_B_m, "optical_flow.position_B_m"),
             )
-            self.optical_flow = OpticalFlowSensor(flow, np.random.default_rng(seeds[10]))
+            self.optical_flow = OpticalFlowSensor(flow, np.random.default_rng(seed_flow))
             self.flow_every_ticks = round(1.0 / (flow.rate_hz * TICK_DT))
 
+    def _init_camera(self, preset: VehicleSetup, rng_render: np.random.Generator) -> None:
+        """The renderer of a camera preset (None: the ground-truth sensor reports), and the capture clock."""
+        s = self.scenario
         self.renderer: Renderer | None = None
         if preset.uses_camera:
             if preset.camera is None or preset.pad is None:  # a camera preset builds both (presets.py)
@@ -344,10 +405,13 @@ class World:
                 rng_render,
                 R_BC=preset.mount.R_BC,
             )
-        self.perception_period_s = 1.0 / pc.rate_hz
+        self.perception_period_s = 1.0 / s.perception.rate_hz
         self.next_capture_s = 0.0
         self._pending: deque[tuple[float, float, Frame]] = deque()  # (delivery, capture time, frame)
 
+    def _init_physics(self, preset: VehicleSetup) -> None:
+        """The compiled loop's parameters and inputs, the vehicle at rest, and the platform's path."""
+        s, airframe = self.scenario, self.airframe
         self.sim_params = pack_params(airframe)
         self.ll_params = pack_low_level_params(airframe, preset.rate_gains)
         gear = airframe.gear_height
@@ -375,6 +439,10 @@ class World:
         deck_rows[:, DK_A : DK_A + 3] = tr.a_WP
         deck_rows[:, DK_YAW] = tr.yaw
         deck_rows[:, DK_YAW_RATE] = tr.yaw_rate
+
+    def _init_flight(self) -> None:
+        """The clock, the contact's record and the verdict before the first tick."""
+        s = self.scenario
         self.k = 0
         self.t = 0.0
         self.airborne = False
@@ -392,27 +460,13 @@ class World:
         self.on_deck = 0
         self.on_ground = 0
         # the lowest a foot can be below the body origin (tilted 25 deg with the feet 0.2 m out), plus 1 cm
-        reach = gear + s.contact.gear_half_width_m * 0.5 + 0.01
+        reach = self.airframe.gear_height + s.contact.gear_half_width_m * 0.5 + 0.01
         self.low_z = s.platform.pad_height_m + reach
         self.f_wind: FloatArray = np.zeros(3)
         self.last_range_m = math.inf  # the latest reading as the sensor reported it (faults applied)
         self._batch_xs = self._batch_imu = np.empty((0, 0))
         self._batch_touch: list[list[float]] = []  # feet on (deck, ground) after each tick of the batch
         self._batch_i = self._batch_n = 0
-
-    @classmethod
-    def for_scenario(cls, scenario: Scenario, airframe: Airframe | None = None) -> World:
-        """The world of ``scenario`` for its preset, seeded as ``run_mission`` seeds it, for a flight whose
-        pipeline runs elsewhere (``alight sitl``): the preset is built only for its camera, pad, mount
-        and rate gains."""
-        from alight.airframes import load_airframe
-        from alight.mission.presets import build_preset
-
-        if airframe is None:
-            airframe = load_airframe(scenario.airframe)
-        seeds = mission_seeds(scenario.seed)
-        preset = build_preset(scenario, airframe, np.random.default_rng(seeds[SEED_PIPELINE]))
-        return cls(scenario, airframe, preset, seeds)
 
     # -- stepping ----------------------------------------------------------------------------------------
     @property

@@ -1,8 +1,9 @@
 """The fused inner loop: the autopilot's body-rate loop and mixer, and the vehicle's dynamics, at 1 kHz.
 
 The low level (``control.mixer.low_level``) and the dynamics (``sim.quadrotor.step``) live in separate
-packages that must not know each other; this module, on the evaluation side that sees both, runs them
-together in one compiled loop so that the 1 kHz part of a mission costs no Python calls. The rate loop
+packages that do not know each other; this module and ``sim/world.py``, the simulator's one part that
+sees the autopilot's inner loop (tests/meta/test_layers.py), run them together in one compiled loop so
+that the 1 kHz part of a mission costs no Python calls. The rate loop
 reads the true body rates: on a real autopilot it runs on the filtered gyro at 1 kHz or more, and the
 gyro's white noise at that level is below what matters for the outer loops.
 

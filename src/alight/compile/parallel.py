@@ -2,7 +2,7 @@
 
 A cold warm-up compiles about 200 signatures, one at a time, in one process: numba's compiler is single
 threaded (67-98 s of CPU for the alight preset on 2-core machines). The kernels that a warm-up flight
-calls from Python, its *outermost* kernels, are listed in ``warmup_kernels.json`` with their signatures,
+calls from Python, its *outermost* kernels, are listed in ``kernels.json`` with their signatures,
 the presets whose flights call them, and the CPU time each compile took. When numba's cache lacks
 entries of that list, :func:`compile_ahead` splits the missing ones across helper processes (the longest
 compile first, onto the least-loaded helper) that compile them with ``Dispatcher.compile`` and so write
@@ -13,7 +13,7 @@ with it, so two helpers may both compile a small shared callee: the price of not
 All signatures of one kernel go to the same helper (two processes writing one cache index could each drop
 the other's entry).
 
-The list is data derived from the code. ``python -m alight.parallel_compile --write`` flies each preset's
+The list is data derived from the code. ``python -m alight.compile.kernel_list --write`` flies each preset's
 warm-up on an empty cache and records the kernels called from Python, and a test checks that the list is
 what the warm-up flights call. A stale or missing list costs time, never correctness: whatever the
 helpers did not compile, the flight compiles, as it always did. So every failure here (no list, a numba
@@ -36,9 +36,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from alight.compile.cache import cache_dir
 from alight.process_stats import max_rss_mib
 
-MANIFEST = Path(__file__).with_name("warmup_kernels.json")
+MANIFEST = Path(__file__).with_name("kernels.json")
 """The outermost kernels of each preset's warm-up flight (see the module docstring)."""
 
 MAX_HELPERS = 8
@@ -225,8 +226,6 @@ def compile_ahead(
         return report
     if all(_cached(k) for k in listed):
         return report
-    from alight.numba_cache import cache_dir
-
     with _exclusive(cache_dir()[0]):
         missing = [k for k in listed if not _cached(k)]
         if len(missing) < 2:
@@ -244,7 +243,7 @@ def compile_ahead(
 
 def _run_helpers(shares: list[list[Kernel]], report: CompileAheadReport) -> None:
     env = dict(os.environ)
-    src = str(Path(__file__).resolve().parents[1])  # the helpers import this copy of alight
+    src = str(Path(__file__).resolve().parents[2])  # the helpers import this copy of alight
     env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
     with tempfile.TemporaryDirectory(prefix="alight-compile-ahead-") as tmp:
         # Each helper's share in a file of its own, all written before any helper starts (and so before
@@ -256,7 +255,7 @@ def _run_helpers(shares: list[list[Kernel]], report: CompileAheadReport) -> None
         for path in paths:
             try:
                 proc = subprocess.Popen(
-                    [sys.executable, "-m", "alight.parallel_compile", "--helper", str(path)],
+                    [sys.executable, "-m", "alight.compile.parallel", "--helper", str(path)],
                     stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                     env=env,
                 )  # fmt: skip
@@ -317,90 +316,6 @@ def _helper(kernels: list[Kernel]) -> list[dict[str, Any]]:
     return results
 
 
-# -- writing the list ------------------------------------------------------------------------------------
-
-
-@contextlib.contextmanager
-def python_calls() -> Iterator[list[tuple[str, str, str, float]]]:
-    """Record each numba kernel signature first called (or compiled with ``.compile``) from Python while
-    the block runs, as ``(module, qualname, signature, CPU seconds of the call)``; what a kernel calls is
-    compiled inside its caller's compile and is not recorded. How: a Python call that finds no compiled
-    signature enters the dispatcher's ``_compile_for_args`` (which loads it from the cache or compiles
-    it), and a controller that skips the dispatcher calls ``Dispatcher.compile`` itself; both are wrapped,
-    and only the outermost entry counts. These are numba's internals, so this is for writing and checking
-    the list, never for flying."""
-    import threading
-
-    from numba.core import dispatcher
-
-    Dispatcher: Any = dispatcher.Dispatcher  # noqa: N806  (numba's stubs lack its internals)
-    calls: list[tuple[str, str, str, float]] = []
-    depth = threading.local()
-    originals = {name: getattr(Dispatcher, name) for name in ("_compile_for_args", "compile")}
-
-    def wrap(original: Any) -> Any:
-        def recording(self: Any, *args: Any, **kws: Any) -> Any:
-            level = getattr(depth, "n", 0)
-            before = set(self.signatures) if level == 0 else set()
-            t0 = time.process_time()
-            depth.n = level + 1
-            try:
-                return original(self, *args, **kws)
-            finally:
-                depth.n = level
-                fn = self.py_func
-                if level == 0 and fn.__module__.startswith("alight."):
-                    dt = time.process_time() - t0
-                    for sig in set(self.signatures) - before:
-                        calls.append((fn.__module__, fn.__qualname__, repr(sig), dt))
-
-        return recording
-
-    for name, original in originals.items():
-        setattr(Dispatcher, name, wrap(original))
-    try:
-        yield calls
-    finally:
-        for name, original in originals.items():
-            setattr(Dispatcher, name, original)
-
-
-def _record_preset(preset: str) -> list[tuple[str, str, str, float]]:
-    """(In a process with an empty cache) fly ``preset``'s warm-up and return its outermost kernels."""
-    from alight.warmup import warm_up
-
-    with python_calls() as calls:
-        warm_up([preset], compile_first=False)
-    return calls
-
-
-def write_manifest(presets: Sequence[str], path: Path = MANIFEST) -> list[Kernel]:
-    """Fly each preset's warm-up in a fresh process on an empty numba cache and write the list."""
-    found: dict[tuple[str, str, str], Kernel] = {}
-    for preset in presets:
-        with tempfile.TemporaryDirectory(prefix="alight-manifest-") as cache:
-            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-            out = subprocess.run(
-                [sys.executable, "-m", "alight.parallel_compile", "--record", preset],
-                env=env, capture_output=True, text=True, check=True,
-            )  # fmt: skip
-        for module, qualname, sig, cpu_s in json.loads(out.stdout.strip().splitlines()[-1]):
-            key = (module, qualname, sig)
-            old = found.get(key)
-            presets_of = (*old.presets, preset) if old else (preset,)
-            found[key] = Kernel(module, qualname, sig, presets_of, max(cpu_s, old.compile_s if old else 0.0))
-    kernels = sorted(found.values(), key=lambda k: (k.module, k.qualname, k.signature))
-    data = {
-        "about": "Outermost numba kernels of each preset's warm-up flight; written by python -m "
-        "alight.parallel_compile --write, checked by tests/test_parallel_compile.py.",
-        "kernels": [
-            {**k.__dict__, "presets": list(k.presets), "compile_s": round(k.compile_s, 2)} for k in kernels
-        ],
-    }
-    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
-    return kernels
-
-
 def _exit_with_parent(poll_s: float = 0.5) -> None:
     """End this helper when the process that started it is gone. An interrupt is cleaned up by
     :func:`_collect`; a parent that is killed (a campaign stopping a sandbox, the OOM killer) is not, and
@@ -418,6 +333,7 @@ def _exit_with_parent(poll_s: float = 0.5) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m alight.compile.parallel --helper SHARE``: a helper process of :func:`compile_ahead`."""
     args = sys.argv[1:] if argv is None else argv
     if args[:1] == ["--helper"] and len(args) == 2:
         _exit_with_parent()
@@ -428,16 +344,10 @@ def main(argv: list[str] | None = None) -> int:
         done = {"read_at": read_at, "done_at": time.time(), "results": results, "max_rss_mib": max_rss_mib()}
         print(json.dumps(done))
         return 0
-    if args[:1] == ["--record"] and len(args) == 2:
-        print(json.dumps(_record_preset(args[1])))
-        return 0
-    if args[:1] == ["--write"]:
-        from alight.mission.presets import PRESETS
-
-        kernels = write_manifest(args[1:] or sorted(PRESETS))
-        print(f"{MANIFEST}: {len(kernels)} kernel signatures")
-        return 0
-    print("usage: python -m alight.parallel_compile --write [PRESET ...]", file=sys.stderr)
+    print(
+        "usage: python -m alight.compile.parallel --helper SHARE.json (started by compile_ahead)",
+        file=sys.stderr,
+    )
     return 2
 
 

@@ -3,11 +3,11 @@
 Every ``@njit`` in alight has ``cache=True``. numba invalidates a kernel's cache entry when *its own*
 source file changes, not when a kernel it calls, in another file, does (numba's documented limitation:
 "changes in functions called by the cached function are not detected"). ``tick_batch`` in
-``evaluation/physics.py`` calls the rigid body of ``sim/quadrotor.py`` and the rate loop of
+``sim/physics.py`` calls the rigid body of ``sim/quadrotor.py`` and the rate loop of
 ``control/``: after an edit of those alone, or a ``git pull`` into an editable install, a process loaded
 the old machine code and flew the old physics without a word. So the cache directory is keyed by a hash
 of every ``.py`` file of the package: any change of alight's source starts a fresh cache (one full
-compile, ``python -m alight.warmup``), and an unchanged install keeps loading in milliseconds.
+compile, ``python -m alight.compile.warmup``), and an unchanged install keeps loading in milliseconds.
 
 The directory is ``<root>/alight-<key>``, the root being ``NUMBA_CACHE_DIR`` when set, else
 ``__pycache__/numba`` inside the package when it is writable (a source checkout), else the user's cache
@@ -26,7 +26,8 @@ import shutil
 import sys
 from pathlib import Path
 
-PACKAGE_ROOT = Path(__file__).resolve().parent
+PACKAGE_ROOT = Path(__file__).resolve().parents[1]
+"""The ``alight`` package directory, whose source keys the cache."""
 _PREFIX = "alight-"
 
 
