@@ -128,3 +128,57 @@ def test_damaged_cells_do_not_stop_the_report_or_the_resume(
     after = results.read_text(encoding="utf-8").splitlines()
     assert after[: 1 + len(damaged)] == [lines[0], *damaged]
     assert len(after) == 1 + len(campaign.missions)
+
+
+def _sampled(n: int) -> dict:
+    return _spec(sample={"n": n, "platform.speed_mps": {"dist": "uniform", "low": 1.0, "high": 2.0}})
+
+
+def test_limit_draws_only_the_first_conditions_of_a_billion_draws(tmp_path: Path) -> None:
+    """``sample.n: 1e9`` with a limit draws the few conditions it flies (it once drew all 1e9 first:
+    3.2 GB, then a MemoryError), and they are the full expansion's first draws."""
+    import time
+    import tracemalloc
+
+    path = tmp_path / "billion.yaml"
+    path.write_text(yaml.safe_dump(_sampled(10**9)))
+    tracemalloc.start()
+    t0 = time.monotonic()
+    try:
+        c = load_campaign(path, limit=5)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert time.monotonic() - t0 < 20.0 and peak < 50e6
+    assert [m.mission_id for m in c.missions] == [
+        "c000-groundtruth-r000",
+        "c000-falanga2017-r000",
+        "c001-groundtruth-r000",
+        "c001-falanga2017-r000",
+        "c002-groundtruth-r000",
+    ]
+    assert [cond.condition_id for cond in c.conditions] == ["c000", "c001", "c002"]
+    small = campaign_from_dict(_sampled(4))
+    assert [(m.mission_id, m.seed, m.params) for m in c.missions] == [
+        (m.mission_id, m.seed, m.params) for m in small.missions[:5]
+    ]
+    with pytest.raises(ConfigError, match="2,000,000,000 missions, more than") as info:
+        load_campaign(path)
+    assert "\n" not in str(info.value)
+
+
+def test_cli_flies_one_mission_of_a_billion_draws_and_refuses_them_all(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "billion.yaml"
+    path.write_text(yaml.safe_dump({**_sampled(10**9), "presets": ["groundtruth"]}))
+    assert main(["campaign", str(path), "--out", str(tmp_path / "all"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "1,000,000,000 missions" in err
+    monkeypatch.setenv(MISSION_FN_ENV, "campaign_fakes:instant")
+    here = str(Path(__file__).resolve().parent)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p))
+    out = tmp_path / "one"
+    args = ["campaign", str(path), "--out", str(out), "--workers", "1", "--limit", "1", "--no-progress"]
+    assert main(args) == 0
+    assert [r["mission_id"] for r in read_rows(out / "results.csv")] == ["c000-groundtruth-r000"]
