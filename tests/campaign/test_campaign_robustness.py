@@ -1,5 +1,6 @@
 """Campaign files that cannot blow up: expansion is counted before it is made and capped, ``--limit``
-expands only what it flies, and a damaged results.csv cell is read as missing, never a traceback."""
+expands only what it flies (grid points and sampled draws), and a damaged results.csv cell damages its
+row, which is named and left out, never a traceback."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import pytest
 import yaml
 
 from alight.campaign import campaign_from_dict, run_campaign
+from alight.campaign.results import COLUMN, read_cell
 from alight.campaign.spec import MAX_MISSIONS, CampaignSpec, count_missions, load_campaign
-from alight.campaign.store import parse_float, read_rows
+from alight.campaign.store import read_rows
 from alight.cli import MISSION_FN_ENV, main
 from alight.errors import ConfigError
 
@@ -99,10 +101,13 @@ def test_cli_refuses_a_huge_campaign_with_one_line_and_flies_its_head_with_limit
     assert len(read_rows(out / "results.csv")) == 3
 
 
-@pytest.mark.parametrize("text", ["", "abc", "1e", "--", "None"])
-def test_a_cell_that_is_not_a_number_reads_as_missing(text: str) -> None:
-    assert parse_float(text) is None
-    assert parse_float("2.5") == 2.5
+@pytest.mark.parametrize("text", ["abc", "1e", "--", "None", "nan", "inf", "-1", "1e308", "1" * 10**6])
+def test_a_numeric_cell_that_is_not_a_plausible_number_is_damage(text: str) -> None:
+    value, problem = read_cell(COLUMN["wall_time_s"], text)
+    assert value is None and problem is not None and problem.startswith("wall_time_s: ")
+    assert len(problem) < 200  # a 1 MB cell is named by its head and its length
+    assert read_cell(COLUMN["wall_time_s"], "") == (None, None)  # empty: no value, no damage
+    assert read_cell(COLUMN["wall_time_s"], "2.5") == (2.5, None)
 
 
 def test_damaged_cells_do_not_stop_the_report_or_the_resume(
