@@ -453,13 +453,20 @@ def test_damaged_cells(tmp_path):
         w.writerow(header)
         w.writerows(damaged)
     res = read_results(out)
-    assert len(res.missions) == len(rows)
-    assert res.missions[0].values["touchdown_error_m"] is None
-    assert res.missions[1].values["wall_time_s"] is None
-    assert res.missions[2].outcome == "unknown" and not res.missions[2].success
-    assert res.missions[3].success == (rows[3]["outcome"] == "landed")
+    # each damaged row is named and left out of every figure; the other rows are read as written
+    assert [(d.line, d.mission_id) for d in res.damaged] == [
+        (k + 1, rows[k - 1]["mission_id"]) for k in range(1, 5)
+    ]
+    problems = [d.problem for d in res.damaged]
+    assert problems[0].startswith("touchdown_error_m: 'not-a-number' is not a number")
+    assert problems[1].startswith("wall_time_s: 'nan' is outside")
+    assert problems[2] == f"has 7 cells, the header {len(header)}"
+    assert problems[3] == "success: 'yes?' is not 0 or 1"
+    assert [m.mission_id for m in res.missions] == [r["mission_id"] for r in rows[4:]]
+    assert res.missions[0].values["wall_time_s"] == float(rows[4]["wall_time_s"])
     text = write_campaign_report(out).read_text(encoding="utf-8")
-    assert "could not be read" in text and "do not have one cell per column" in text
+    assert "Damaged rows (4)" in text and "left out of every figure" in text
+    assert all(rows[k]["mission_id"] in text for k in range(4))
     hrefs = _parse(out / "report.html").hrefs
     assert hrefs and all(h.startswith(("missions/c", "results.csv")) and ".." not in h for h in hrefs)
     # summary.json unreadable, or with a damaged group: the numbers come from results.csv

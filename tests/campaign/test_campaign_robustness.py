@@ -1,5 +1,6 @@
 """Campaign files that cannot blow up: expansion is counted before it is made and capped, ``--limit``
-expands only what it flies, and a damaged results.csv cell is read as missing, never a traceback."""
+expands only what it flies (grid points and sampled draws), and a damaged results.csv cell damages its
+row, which is named and left out, never a traceback."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import pytest
 import yaml
 
 from alight.campaign import campaign_from_dict, run_campaign
+from alight.campaign.results import COLUMN, read_cell
 from alight.campaign.spec import MAX_MISSIONS, CampaignSpec, count_missions, load_campaign
-from alight.campaign.store import parse_float, read_rows
+from alight.campaign.store import read_rows
 from alight.cli import MISSION_FN_ENV, main
 from alight.errors import ConfigError
 
@@ -99,10 +101,13 @@ def test_cli_refuses_a_huge_campaign_with_one_line_and_flies_its_head_with_limit
     assert len(read_rows(out / "results.csv")) == 3
 
 
-@pytest.mark.parametrize("text", ["", "abc", "1e", "--", "None"])
-def test_a_cell_that_is_not_a_number_reads_as_missing(text: str) -> None:
-    assert parse_float(text) is None
-    assert parse_float("2.5") == 2.5
+@pytest.mark.parametrize("text", ["abc", "1e", "--", "None", "nan", "inf", "-1", "1e308", "1" * 10**6])
+def test_a_numeric_cell_that_is_not_a_plausible_number_is_damage(text: str) -> None:
+    value, problem = read_cell(COLUMN["wall_time_s"], text)
+    assert value is None and problem is not None and problem.startswith("wall_time_s: ")
+    assert len(problem) < 200  # a 1 MB cell is named by its head and its length
+    assert read_cell(COLUMN["wall_time_s"], "") == (None, None)  # empty: no value, no damage
+    assert read_cell(COLUMN["wall_time_s"], "2.5") == (2.5, None)
 
 
 def test_damaged_cells_do_not_stop_the_report_or_the_resume(
@@ -128,3 +133,57 @@ def test_damaged_cells_do_not_stop_the_report_or_the_resume(
     after = results.read_text(encoding="utf-8").splitlines()
     assert after[: 1 + len(damaged)] == [lines[0], *damaged]
     assert len(after) == 1 + len(campaign.missions)
+
+
+def _sampled(n: int) -> dict:
+    return _spec(sample={"n": n, "platform.speed_mps": {"dist": "uniform", "low": 1.0, "high": 2.0}})
+
+
+def test_limit_draws_only_the_first_conditions_of_a_billion_draws(tmp_path: Path) -> None:
+    """``sample.n: 1e9`` with a limit draws the few conditions it flies (it once drew all 1e9 first:
+    3.2 GB, then a MemoryError), and they are the full expansion's first draws."""
+    import time
+    import tracemalloc
+
+    path = tmp_path / "billion.yaml"
+    path.write_text(yaml.safe_dump(_sampled(10**9)))
+    tracemalloc.start()
+    t0 = time.monotonic()
+    try:
+        c = load_campaign(path, limit=5)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert time.monotonic() - t0 < 20.0 and peak < 50e6
+    assert [m.mission_id for m in c.missions] == [
+        "c000-groundtruth-r000",
+        "c000-falanga2017-r000",
+        "c001-groundtruth-r000",
+        "c001-falanga2017-r000",
+        "c002-groundtruth-r000",
+    ]
+    assert [cond.condition_id for cond in c.conditions] == ["c000", "c001", "c002"]
+    small = campaign_from_dict(_sampled(4))
+    assert [(m.mission_id, m.seed, m.params) for m in c.missions] == [
+        (m.mission_id, m.seed, m.params) for m in small.missions[:5]
+    ]
+    with pytest.raises(ConfigError, match="2,000,000,000 missions, more than") as info:
+        load_campaign(path)
+    assert "\n" not in str(info.value)
+
+
+def test_cli_flies_one_mission_of_a_billion_draws_and_refuses_them_all(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "billion.yaml"
+    path.write_text(yaml.safe_dump({**_sampled(10**9), "presets": ["groundtruth"]}))
+    assert main(["campaign", str(path), "--out", str(tmp_path / "all"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "1,000,000,000 missions" in err
+    monkeypatch.setenv(MISSION_FN_ENV, "campaign_fakes:instant")
+    here = str(Path(__file__).resolve().parent)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p))
+    out = tmp_path / "one"
+    args = ["campaign", str(path), "--out", str(out), "--workers", "1", "--limit", "1", "--no-progress"]
+    assert main(args) == 0
+    assert [r["mission_id"] for r in read_rows(out / "results.csv")] == ["c000-groundtruth-r000"]

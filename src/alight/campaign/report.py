@@ -20,14 +20,15 @@ that flew. Touchdown error and time to land are over landed missions; energies o
 Quantiles are numpy's default (linear interpolation between order statistics).
 
 The page is self-contained: figures are inline base64 PNGs, the CSS is inline, there is no script and
-no reference to anything on the network (links to mission files are relative). Empty, partial and
-malformed results give a page that says what is missing rather than an exception.
+no reference to anything on the network (links to mission files are relative). Empty and partial
+results give a page that says what is missing rather than an exception. results.csv is read by
+:func:`alight.campaign.results.read_table`, as summary.json is: a damaged row is listed under "Damaged
+rows" and left out of every figure; a file that is not a campaign's results.csv is an ``InputError``.
 """
 
 from __future__ import annotations
 
 import base64
-import csv
 import datetime as _dt
 import html
 import json
@@ -44,8 +45,9 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from alight.campaign.store import ID_COLUMNS, NUMERIC_COLUMNS, OUTCOMES, RESULT_COLUMNS
-from alight.campaign.summary import group_statistics
+from alight.campaign.results import Damage, Mission
+from alight.campaign.store import OUTCOMES, read_lock
+from alight.campaign.summary import group_statistics, read_campaign_table
 from alight.errors import InputError
 from alight.evaluation.log import LOG_NPZ
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
@@ -58,11 +60,6 @@ REPORT_HTML = "report.html"
 RESULTS_CSV = "results.csv"
 SUMMARY_JSON = "summary.json"
 MISSION_REPORT = "report.html"
-
-# The columns of results.csv are the store's (one definition for the writer and the reader).
-_ID_COLUMNS = ID_COLUMNS
-_RESULT_COLUMNS = RESULT_COLUMNS
-_NUMERIC = NUMERIC_COLUMNS
 
 MAX_FAILURE_ROWS = 400
 """Failures listed in the page; the rest are counted (results.csv has them all)."""
@@ -80,136 +77,80 @@ _MISSING = "\u2014"  # a parameter not set at a condition (the base scenario's v
 
 
 @dataclass
-class Mission:
-    """One row of results.csv, parsed leniently (bad numbers become None and are counted)."""
-
-    mission_id: str
-    condition_id: str
-    preset: str
-    params: dict[str, str]
-    """Swept parameter (dotted path) -> cell text ('' when the condition does not set it)."""
-    outcome: str
-    success: bool
-    values: dict[str, float | None]
-    """Numeric result columns (SI units, as in results.csv); None for an empty or unreadable cell."""
-    replicate: str = ""
-    seed: str = ""
-    mission_dir: str = ""
-    error: str = ""
-
-    @property
-    def flew(self) -> bool:
-        return self.outcome != "error"
-
-
-@dataclass
 class Results:
     """What the report is built from."""
 
     missions: list[Mission]
+    """The undamaged rows of results.csv: every figure is computed from these."""
     swept: list[str]
     presets: list[str]
     summary: dict[str, Any] | None
     notes: list[str] = field(default_factory=list)
-    """Problems met while reading (bad cells, stale summary), shown in the page."""
+    """Problems met while reading (columns, a stale summary), shown in the page."""
+    damaged: list[Damage] = field(default_factory=list)
+    """The rows of results.csv left out of every figure, each with its problem, listed in the page."""
 
 
-def _float(text: str | None) -> tuple[float | None, bool]:
-    """(value, ok): empty -> (None, True); unreadable or non-finite -> (None, False)."""
-    if text is None:
-        return None, True
-    s = text.strip()
-    if s == "":
-        return None, True
+def _float(text: str | None) -> float | None:
+    """A parameter's cell as a number, None when it is not one (a parameter may be text)."""
     try:
-        v = float(s)
+        v = float(text or "")
     except ValueError:
-        return None, False
-    return (v, True) if math.isfinite(v) else (None, False)
+        return None
+    return v if math.isfinite(v) else None
 
 
 def read_results(out_dir: str | Path) -> Results:
-    """Parse ``results.csv`` (lenient) and ``summary.json`` (if present) of a campaign directory.
+    """Read ``results.csv`` (by :func:`alight.campaign.results.read_table`'s column rules, its rows
+    checked against campaign.lock.json when it is there) and ``summary.json`` (if present).
 
     Raises:
-        InputError: ``out_dir`` is not a directory.
+        InputError: ``out_dir`` is not a directory, or its results.csv is not a campaign's.
     """
     out = Path(out_dir)
     if not out.is_dir():
         raise InputError(f"{out}: no such campaign output directory")
     notes: list[str] = []
     summary = _read_summary(out / SUMMARY_JSON, notes)
-    path = out / RESULTS_CSV
-    header: list[str] = []
-    raw: list[list[str]] = []
-    if path.is_file():
-        try:
-            text = path.read_text(encoding="utf-8", errors="replace")
-        except OSError as err:
-            raise InputError(f"{path}: cannot read ({err.strerror})") from None
-        lines = list(csv.reader(text.splitlines()))
-        lines = [r for r in lines if any(c.strip() for c in r)]
-        if lines:
-            header, raw = [c.strip() for c in lines[0]], lines[1:]
-    else:
+    if not (out / RESULTS_CSV).is_file():
         notes.append("results.csv is missing: no mission has finished yet.")
-    if header and ("mission_id" not in header or "outcome" not in header):
-        notes.append("results.csv has no mission_id/outcome columns: not a campaign's results.")
-        header, raw = [], []
-    known = set(_ID_COLUMNS) | set(_RESULT_COLUMNS)
-    swept = [c for c in header if c not in known]
-    if summary and isinstance(summary.get("swept_parameters"), list):
-        # the summary knows the swept parameters even when the CSV cannot show their order
-        order = [str(p) for p in summary["swept_parameters"] if str(p) in swept]
-        swept = order + [p for p in swept if p not in order]
-
-    missions: list[Mission] = []
-    bad_cells = short_rows = 0
-    for values in raw:
-        if len(values) != len(header):
-            short_rows += 1
-        row = {h: (values[i] if i < len(values) else "") for i, h in enumerate(header)}
-        nums: dict[str, float | None] = {}
-        for c in _NUMERIC:
-            v, ok = _float(row.get(c))
-            nums[c] = v
-            bad_cells += not ok
-        outcome = row.get("outcome", "").strip().lower() or "unknown"
-        s = row.get("success", "").strip()
-        success = s == "1" if s in ("0", "1") else outcome == "landed"
-        missions.append(
-            Mission(
-                mission_id=row.get("mission_id", "").strip() or f"row{len(missions) + 2}",
-                condition_id=row.get("condition_id", "").strip() or "?",
-                preset=row.get("preset", "").strip() or "?",
-                params={p: row.get(p, "").strip() for p in swept},
-                outcome=outcome,
-                success=success,
-                values=nums,
-                replicate=row.get("replicate", "").strip(),
-                seed=row.get("seed", "").strip(),
-                mission_dir=row.get("mission_dir", "").strip(),
-                error=row.get("error", "").strip(),
-            )
-        )
-    if short_rows:
+        return Results(missions=[], swept=[], presets=[], summary=summary, notes=notes)
+    table = read_campaign_table(out, _read_lock(out, notes))
+    notes += [f"{n[0].upper()}{n[1:]}." for n in table.notes]
+    if table.damaged:
         notes.append(
-            f"{short_rows} row(s) of results.csv do not have one cell per column; "
-            "missing cells read as empty."
+            f"{len(table.damaged)} row(s) of results.csv are damaged and left out of every figure "
+            "(listed under Damaged rows)."
         )
-    if bad_cells:
-        notes.append(f"{bad_cells} numeric cell(s) of results.csv could not be read and count as missing.")
-    presets = list(dict.fromkeys(m.preset for m in missions))
-    if summary and isinstance(summary.get("presets"), list):
-        order = [str(p) for p in summary["presets"] if str(p) in presets]
-        presets = order + [p for p in presets if p not in order]
-    if summary is not None and int(summary.get("n_missions", -1)) != len(missions):
+    missions = table.missions
+    # the summary knows the swept parameters and the presets' order even when the CSV cannot show them
+    swept = _in_order(table.swept, _get(summary, "swept_parameters"))
+    presets = _in_order(list(dict.fromkeys(m.preset for m in missions)), _get(summary, "presets"))
+    if summary is not None and (
+        summary.get("n_missions") != len(missions) or summary.get("n_damaged_rows", 0) != len(table.damaged)
+    ):
         notes.append(
-            f"summary.json counts {summary.get('n_missions')} missions, results.csv has {len(missions)}: "
-            "the numbers below are computed from results.csv."
+            f"summary.json counts {summary.get('n_missions')} missions, results.csv has {len(missions)} "
+            f"readable ones: the numbers below are computed from results.csv."
         )
         summary = {k: v for k, v in summary.items() if k != "groups"}
-    return Results(missions=missions, swept=swept, presets=presets, summary=summary, notes=notes)
+    return Results(missions, swept, presets, summary, notes, table.damaged)
+
+
+def _in_order(names: list[str], order: Any) -> list[str]:
+    """``names``, those listed in ``order`` (summary.json's) first, in its order."""
+    if not isinstance(order, list):
+        return names
+    first = [str(p) for p in order if str(p) in names]
+    return first + [p for p in names if p not in first]
+
+
+def _read_lock(out: Path, notes: list[str]) -> dict[str, Any] | None:
+    try:
+        return read_lock(out)
+    except InputError as err:
+        notes.append(f"{err}: the rows are not checked against the campaign's plan.")
+        return None
 
 
 def _read_summary(path: Path, notes: list[str]) -> dict[str, Any] | None:
@@ -322,7 +263,7 @@ def param_axis(name: str, values: Iterable[str]) -> Axis:
     distinct = list(dict.fromkeys(values))
     blank = [v for v in distinct if v == ""]
     rest = [v for v in distinct if v != ""]
-    nums = [_float(v)[0] for v in rest]
+    nums = [_float(v) for v in rest]
     known = [x for x in nums if x is not None]
     labels: list[str] = [_MISSING] if blank else []
     index: dict[str, int] = {"": 0} if blank else {}
@@ -1011,6 +952,45 @@ def _detail_section(res: Results, groups: list[dict[str, Any]]) -> list[str]:
 
 def render_campaign_html(res: Results, out_dir: Path) -> str:
     """The report page for parsed results (``out_dir`` is used to find the mission files to link)."""
+    out = _page_head(res, out_dir)
+    out += [f'<div class="note">{_esc(n)}</div>' for n in res.notes]
+    out += _damaged_section(res)
+    if not res.missions:
+        what = "readable mission" if res.damaged else "missions"
+        out.append(f'<p class="empty">No {what} in results.csv yet: there is nothing to report.</p>')
+        return "\n".join([*out, _footer(res), "</main>", "</body>", "</html>", ""])
+
+    overall = group_stats(res.missions)
+    per_preset = {p: group_stats([m for m in res.missions if m.preset == p]) for p in res.presets}
+    out.append('<section class="cards">')
+    for label, value in _cards(res, overall):
+        out.append(
+            f'<div class="card"><div class="k">{_esc(label)}</div><div class="v">{_esc(value)}</div></div>'
+        )
+    out.append("</section>")
+    if overall["n_flown"] == 0:
+        out.append('<div class="note">Every mission ended in an error: see the errors under Failures.</div>')
+
+    out.append("<h2>Presets</h2>")
+    out += _comparison_table(res, per_preset)
+    out.append(
+        '<p class="muted">Success rate over missions that flew (errors excluded), '
+        "Wilson 95% interval in brackets. "
+        "Touchdown error (TD) and time to land over landed missions; energies over missions that flew. "
+        "Green marks the best preset, red one 50% or more worse. Outcomes per preset:</p>"
+    )
+    fig = plot_outcomes(res.presets, [per_preset[p]["outcomes"] for p in res.presets])
+    out.append(_figure(fig, "outcomes per preset"))
+    out += _compute_section(res, per_preset)
+    out += _maps_section(res)
+    out += _touchdown_section(res)
+    out += _detail_section(res, condition_groups(res))
+    out += _failures_section(res, out_dir)
+    return "\n".join([*out, _footer(res), "</main>", "</body>", "</html>", ""])
+
+
+def _page_head(res: Results, out_dir: Path) -> list[str]:
+    """From the doctype to the end of the page's header: title, date, version, swept parameters, links."""
     name = str(_get(res.summary, "campaign") or out_dir.resolve().name)
     title = f"Campaign report \u2014 {name}"
     head = [
@@ -1037,39 +1017,35 @@ def render_campaign_html(res: Results, out_dir: Path) -> str:
     links = [f'<a href="{f}">{f}</a>' for f in (RESULTS_CSV, SUMMARY_JSON) if (out_dir / f).is_file()]
     if links:
         sub.append(" ".join(links))
-    out = head + ([f'<p class="sub">{" &middot; ".join(sub)}</p>'] if sub else []) + ["</header>"]
-    out += [f'<div class="note">{_esc(n)}</div>' for n in res.notes]
+    return head + ([f'<p class="sub">{" &middot; ".join(sub)}</p>'] if sub else []) + ["</header>"]
 
-    if not res.missions:
-        out.append('<p class="empty">No missions in results.csv yet: there is nothing to report.</p>')
-        return "\n".join([*out, _footer(res), "</main>", "</body>", "</html>", ""])
 
-    overall = group_stats(res.missions)
-    per_preset = {p: group_stats([m for m in res.missions if m.preset == p]) for p in res.presets}
-    out.append('<section class="cards">')
-    for label, value in _cards(res, overall):
+def _damaged_section(res: Results) -> list[str]:
+    """Every damaged row of results.csv (up to :data:`MAX_FAILURE_ROWS`), with what is wrong with it."""
+    if not res.damaged:
+        return []
+    out = [
+        f"<h2>Damaged rows ({len(res.damaged)})</h2>",
+        '<p class="muted">Rows of results.csv that break a column\'s rule: left out of every figure on '
+        "this page and in summary.json (its <code>damaged_rows</code>).</p>",
+        '<div class="scroll"><table class="fail">',
+        "<thead><tr><th>line</th><th>mission</th><th>problem</th></tr></thead>",
+        "<tbody>",
+    ]
+    for d in res.damaged[:MAX_FAILURE_ROWS]:
         out.append(
-            f'<div class="card"><div class="k">{_esc(label)}</div><div class="v">{_esc(value)}</div></div>'
+            f"<tr><td>{d.line}</td><td>{_esc(d.mission_id or _MISSING)}</td>"
+            f'<td class="err">{_esc(d.problem)}</td></tr>'
         )
-    out.append("</section>")
-    if overall["n_flown"] == 0:
-        out.append('<div class="note">Every mission ended in an error: see the errors under Failures.</div>')
+    out.append("</tbody></table></div>")
+    if len(res.damaged) > MAX_FAILURE_ROWS:
+        more = len(res.damaged) - MAX_FAILURE_ROWS
+        out.append(f'<p class="muted">{more} more damaged rows are listed in summary.json.</p>')
+    return out
 
-    out.append("<h2>Presets</h2>")
-    out += _comparison_table(res, per_preset)
-    out.append(
-        '<p class="muted">Success rate over missions that flew (errors excluded), '
-        "Wilson 95% interval in brackets. "
-        "Touchdown error (TD) and time to land over landed missions; energies over missions that flew. "
-        "Green marks the best preset, red one 50% or more worse. Outcomes per preset:</p>"
-    )
-    fig = plot_outcomes(res.presets, [per_preset[p]["outcomes"] for p in res.presets])
-    out.append(_figure(fig, "outcomes per preset"))
-    out += _compute_section(res, per_preset)
 
-    out += _maps_section(res)
-
-    out.append("<h2>Touchdown error</h2>")
+def _touchdown_section(res: Results) -> list[str]:
+    out = ["<h2>Touchdown error</h2>"]
     td = [
         (
             p,
@@ -1084,14 +1060,10 @@ def render_campaign_html(res: Results, out_dir: Path) -> str:
         for p in res.presets
     ]
     if any(e.size for _, e in td):
-        fig = plot_touchdown_errors(td)
-        out.append(_figure(fig, "touchdown error distributions"))
+        out.append(_figure(plot_touchdown_errors(td), "touchdown error distributions"))
     else:
         out.append('<p class="muted">No mission landed: no touchdown errors to show.</p>')
-
-    out += _detail_section(res, condition_groups(res))
-    out += _failures_section(res, out_dir)
-    return "\n".join([*out, _footer(res), "</main>", "</body>", "</html>", ""])
+    return out
 
 
 def _footer(res: Results) -> str:
@@ -1102,14 +1074,15 @@ def _footer(res: Results) -> str:
     )
 
 
-def write_campaign_report(out_dir: str | Path) -> Path:
-    """Write ``OUT/report.html`` for the campaign output directory ``out_dir`` and return its path.
+def write_campaign_report(out_dir: str | Path, results: Results | None = None) -> Path:
+    """Write ``OUT/report.html`` for the campaign output directory ``out_dir`` and return its path;
+    ``results``: what :func:`read_results` read of it, when the caller has it already.
 
     Raises:
-        InputError: ``out_dir`` is not a directory.
+        InputError: ``out_dir`` is not a directory, or its results.csv is not a campaign's.
     """
     out = Path(out_dir)
-    res = read_results(out)
+    res = read_results(out) if results is None else results
     path = out / REPORT_HTML
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(render_campaign_html(res, out), encoding="utf-8")

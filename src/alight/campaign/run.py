@@ -42,6 +42,7 @@ from alight.campaign.store import (
     MISSIONS_DIR,
     RESULT_COLUMNS,
     RESULT_JSON,
+    RESULTS_CSV,
     ResultsStore,
     columns_for,
     json_safe,
@@ -420,17 +421,39 @@ def _one_line(err: BaseException) -> str:
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
 
 
-def write_report(out_dir: Path) -> tuple[Path | None, str | None]:
+MAX_PROBLEM_LINES = 20
+"""Problems of results.csv printed on stderr when the report is written; the rest are counted (the
+report and summary.json list them all)."""
+
+
+def write_report(out_dir: Path, *, stream: TextIO | None = None) -> tuple[Path | None, str | None]:
     """The campaign report: (path, None); (None, reason) when writing it failed; (None, None) when
-    ``alight.campaign.report`` is not installed."""
+    ``alight.campaign.report`` is not installed. What is wrong with results.csv (its damaged rows, left
+    out of every figure) is also said on ``stream`` (default stderr), one line each."""
     try:
-        from alight.campaign.report import write_campaign_report
+        from alight.campaign.report import read_results, write_campaign_report
     except ImportError:  # the report is optional: results and summary.json stand on their own
         return None, None
     try:
-        return Path(write_campaign_report(out_dir)), None
+        res = read_results(out_dir)
+        _say_problems(out_dir, [*res.notes, *(d.text() for d in res.damaged)], stream or sys.stderr)
+        return Path(write_campaign_report(out_dir, res)), None
+    except AlightError as err:
+        return None, " ".join(str(err).split())
     except Exception as err:  # noqa: BLE001  (a report failure must never cost the results)
         return None, _one_line(err)
+
+
+def _say_problems(out_dir: Path, problems: list[str], stream: TextIO) -> None:
+    where = out_dir / RESULTS_CSV
+    for problem in problems[:MAX_PROBLEM_LINES]:
+        print(f"alight: warning: {where}: {problem}", file=stream)
+    if len(problems) > MAX_PROBLEM_LINES:
+        more = len(problems) - MAX_PROBLEM_LINES
+        print(
+            f"alight: warning: {where}: {more} more problems (report.html and summary.json list them)",
+            file=stream,
+        )
 
 
 def run_campaign(
@@ -468,22 +491,7 @@ def run_campaign(
         campaign = load_campaign(campaign)
     if limit is not None and limit < 1:
         raise ConfigError(f"--limit must be >= 1, got {limit}")
-    fn_spec = function_spec(mission_fn)
-    if views_fn is not None:
-        views_spec: str | None = function_spec(views_fn)
-    else:
-        views_spec = VIEWS_MISSION_FN if fn_spec == DEFAULT_MISSION_FN else None
-    views_per_cell = campaign.spec.views_per_cell
-    if views_spec is None and "views_per_cell" in campaign.spec.model_fields_set:
-        raise ConfigError(
-            f"views_per_cell: the mission function {fn_spec} writes its own files and has no views "
-            "function to draw them (give views_fn, or leave views_per_cell out)"
-        )
-    if views_per_cell == "all" and views_spec is not None:
-        # every failure's views from its one flight: the sweep flies the views function itself
-        fn_spec, views_spec = views_spec, None
-    elif views_per_cell == 0:
-        views_spec = None
+    fn_spec, views_spec = _mission_functions(campaign, mission_fn, views_fn)
     # Real missions: every sandbox compiles the campaign's presets' kernels before its first mission, so
     # no mission's clocks or deadline pay for numba's compile. Other mission functions (the tests' fakes)
     # need no warm-up unless asked.
@@ -504,103 +512,183 @@ def run_campaign(
     except OSError as err:
         raise InputError(f"{out}: cannot create the output directory ({err.strerror})") from None
     missions = campaign.missions[:limit] if limit is not None else campaign.missions
-    store = ResultsStore.open(out / "results.csv", columns_for(campaign.swept_parameters))
+    store = ResultsStore.open(out / RESULTS_CSV, columns_for(campaign.swept_parameters))
     try:
-        _check_resume(out, campaign, store.rows)
-        text = campaign.text
-        if text is None:
-            text = yaml.safe_dump(campaign.spec.model_dump(mode="json", exclude_none=True), sort_keys=False)
-        (out / CAMPAIGN_YAML).write_text(text, encoding="utf-8")
-        write_lock(out, lock_data(campaign))
-
-        pending = [m for m in missions if m.mission_id not in store.done]
-        by_id = {m.mission_id: m for m in pending}
-        tasks = [MissionTask(m.mission_id, m.scenario, campaign.timeout_s) for m in pending]
-        bar = _Progress(campaign.name, len(missions), len(missions) - len(pending), progress)
-        n_run = n_errors = 0
-        interrupted = False
-        with _Interrupts() as interrupts:
-            outcomes = runner.run(tasks)
-            try:
-                bar.show()
-                for outcome in outcomes:
-                    if outcome.mission_id in store.done:  # one row per mission, whatever an engine repeats
-                        continue
-                    with interrupts.critical():
-                        row = _record(out, campaign, by_id[outcome.mission_id], outcome)
-                        store.append(row)
-                    n_run += 1
-                    n_errors += int(row["outcome"] == "error")
-                    bar.update(row["outcome"] == "error")
-                # Never silently drop a mission: one the engine gave no outcome for is an error row.
-                for m in pending:
-                    if m.mission_id not in store.done:
-                        lost = MissionOutcome(
-                            m.mission_id,
-                            None,
-                            error="lost: the engine ended without a result for this mission",
-                            details=f"The {runner.name} engine returned nothing for {m.mission_id}.\n",
-                        )
-                        with interrupts.critical():
-                            store.append(_record(out, campaign, m, lost))
-                        n_run += 1
-                        n_errors += 1
-                        bar.update(True)
-            except KeyboardInterrupt:
-                interrupted = True
-            finally:
-                interrupts.ignore()
-                outcomes.close()  # stops the engine: pending work cancelled, worker processes killed
-                bar.close()
-            result = CampaignRunResult(
-                campaign=campaign.name,
-                out_dir=out,
-                n_planned=len(missions),
-                n_skipped=len(missions) - len(pending),
-                n_run=n_run,
-                n_errors=n_errors,
-                wall_time_s=0.0,
-                summary_path=None,
-            )
-            ours = {m.mission_id for m in missions}
-            recorded = [r for r in store.rows if r["mission_id"] in ours]
-            result.n_recorded = len(recorded)
-            result.n_recorded_errors = sum(r["outcome"] == "error" for r in recorded)
-            result.summary_path = write_summary(out)
-            if interrupted:
-                result.wall_time_s = time.monotonic() - t0
-                done = result.n_skipped + n_run
-                raise CampaignInterrupted(
-                    f"interrupted: {done} of {len(missions)} missions recorded in {out}; "
-                    "run the same command again to resume",
-                    result,
-                )
+        _start_directory(out, campaign, store)
+        result = _sweep(out, campaign, missions, store, runner, progress, t0)
+        views_per_cell = campaign.spec.views_per_cell
         if views_spec is not None and isinstance(views_per_cell, int):
             wanted = views_wanted(out, missions, store.rows, views_per_cell)
             if wanted:
                 views_warmup = warmup or views_spec in SIMULATED_MISSION_FNS
                 presets = presets_to_warm_up(m.scenario for m in wanted) if views_warmup else ()
                 views_runner = make_engine(engine, fn_spec=views_spec, warmup=presets, **engine_options)
-                try:
-                    stopped = _fly_views(out, campaign, wanted, views_runner, progress, result)
-                except (AlightError, OSError) as err:
-                    # The engine could not fly the views (workers that die at start-up, a lost
-                    # scheduler): every result is recorded, and the report is still written.
-                    stopped = False
-                    result.views_problems.append(
-                        f"the views of {len(wanted)} failures were not drawn ({_one_line(err)}); "
-                        "run the same command again to draw them"
-                    )
-                if stopped:
-                    result.wall_time_s = time.monotonic() - t0
-                    raise CampaignInterrupted(
-                        f"interrupted while drawing the views of failures: all {result.n_recorded} missions "
-                        f"are recorded in {out}; run the same command again to draw the rest",
-                        result,
-                    )
+                _draw_views(out, campaign, wanted, views_runner, progress, result, t0)
         if report:  # Ctrl-C works again here: the results are complete whatever happens to the report
             result.report_path, result.report_error = write_report(out)
     finally:
         store.close()
     result.wall_time_s = time.monotonic() - t0
     return result
+
+
+def _mission_functions(
+    campaign: Campaign, mission_fn: MissionFn | str | None, views_fn: MissionFn | str | None
+) -> tuple[str, str | None]:
+    """The sweep's mission function and the one that draws the failures' views (None: no views flight),
+    by ``views_per_cell``: ``all`` flies the views function in the sweep, 0 draws none."""
+    fn_spec = function_spec(mission_fn)
+    if views_fn is not None:
+        views_spec: str | None = function_spec(views_fn)
+    else:
+        views_spec = VIEWS_MISSION_FN if fn_spec == DEFAULT_MISSION_FN else None
+    views_per_cell = campaign.spec.views_per_cell
+    if views_spec is None and "views_per_cell" in campaign.spec.model_fields_set:
+        raise ConfigError(
+            f"views_per_cell: the mission function {fn_spec} writes its own files and has no views "
+            "function to draw them (give views_fn, or leave views_per_cell out)"
+        )
+    if views_per_cell == "all" and views_spec is not None:
+        # every failure's views from its one flight: the sweep flies the views function itself
+        return views_spec, None
+    if views_per_cell == 0:
+        return fn_spec, None
+    return fn_spec, views_spec
+
+
+def _start_directory(out: Path, campaign: Campaign, store: ResultsStore) -> None:
+    """Check that ``out``'s recorded missions are this campaign's; write its campaign.yaml and lock."""
+    _check_resume(out, campaign, store.rows)
+    text = campaign.text
+    if text is None:
+        text = yaml.safe_dump(campaign.spec.model_dump(mode="json", exclude_none=True), sort_keys=False)
+    (out / CAMPAIGN_YAML).write_text(text, encoding="utf-8")
+    write_lock(out, lock_data(campaign))
+
+
+def _sweep(
+    out: Path,
+    campaign: Campaign,
+    missions: list[PlannedMission],
+    store: ResultsStore,
+    runner: Any,
+    progress: bool,
+    t0: float,
+) -> CampaignRunResult:
+    """Fly the ``missions`` not yet in ``store`` on ``runner``, recording each as it finishes, then write
+    summary.json; ``CampaignInterrupted`` on Ctrl-C, after that."""
+    pending = [m for m in missions if m.mission_id not in store.done]
+    bar = _Progress(campaign.name, len(missions), len(missions) - len(pending), progress)
+    result = CampaignRunResult(
+        campaign=campaign.name,
+        out_dir=out,
+        n_planned=len(missions),
+        n_skipped=len(missions) - len(pending),
+        n_run=0,
+        n_errors=0,
+        wall_time_s=0.0,
+        summary_path=None,
+    )
+    interrupted = False
+    with _Interrupts() as interrupts:
+        outcomes = runner.run([MissionTask(m.mission_id, m.scenario, campaign.timeout_s) for m in pending])
+        try:
+            bar.show()
+            _record_outcomes(out, campaign, pending, outcomes, store, interrupts, bar, result)
+            _record_lost(out, campaign, pending, runner.name, store, interrupts, bar, result)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            interrupts.ignore()
+            outcomes.close()  # stops the engine: pending work cancelled, worker processes killed
+            bar.close()
+        ours = {m.mission_id for m in missions}
+        recorded = [r for r in store.rows if r["mission_id"] in ours]
+        result.n_recorded = len(recorded)
+        result.n_recorded_errors = sum(r["outcome"] == "error" for r in recorded)
+        result.summary_path = write_summary(out)
+        if interrupted:
+            result.wall_time_s = time.monotonic() - t0
+            raise CampaignInterrupted(
+                f"interrupted: {result.n_skipped + result.n_run} of {len(missions)} missions recorded in "
+                f"{out}; run the same command again to resume",
+                result,
+            )
+    return result
+
+
+def _record_outcomes(
+    out: Path,
+    campaign: Campaign,
+    pending: list[PlannedMission],
+    outcomes: Iterator[MissionOutcome],
+    store: ResultsStore,
+    interrupts: _Interrupts,
+    bar: _Progress,
+    result: CampaignRunResult,
+) -> None:
+    by_id = {m.mission_id: m for m in pending}
+    for outcome in outcomes:
+        if outcome.mission_id in store.done:  # one row per mission, whatever an engine repeats
+            continue
+        with interrupts.critical():
+            row = _record(out, campaign, by_id[outcome.mission_id], outcome)
+            store.append(row)
+        result.n_run += 1
+        result.n_errors += int(row["outcome"] == "error")
+        bar.update(row["outcome"] == "error")
+
+
+def _record_lost(
+    out: Path,
+    campaign: Campaign,
+    pending: list[PlannedMission],
+    engine_name: str,
+    store: ResultsStore,
+    interrupts: _Interrupts,
+    bar: _Progress,
+    result: CampaignRunResult,
+) -> None:
+    """Never silently drop a mission: one the engine gave no outcome for is an error row."""
+    for m in pending:
+        if m.mission_id not in store.done:
+            lost = MissionOutcome(
+                m.mission_id,
+                None,
+                error="lost: the engine ended without a result for this mission",
+                details=f"The {engine_name} engine returned nothing for {m.mission_id}.\n",
+            )
+            with interrupts.critical():
+                store.append(_record(out, campaign, m, lost))
+            result.n_run += 1
+            result.n_errors += 1
+            bar.update(True)
+
+
+def _draw_views(
+    out: Path,
+    campaign: Campaign,
+    wanted: list[PlannedMission],
+    views_runner: Any,
+    progress: bool,
+    result: CampaignRunResult,
+    t0: float,
+) -> None:
+    """Fly ``wanted`` again for their views; ``CampaignInterrupted`` on Ctrl-C (every result is kept)."""
+    try:
+        stopped = _fly_views(out, campaign, wanted, views_runner, progress, result)
+    except (AlightError, OSError) as err:
+        # The engine could not fly the views (workers that die at start-up, a lost
+        # scheduler): every result is recorded, and the report is still written.
+        stopped = False
+        result.views_problems.append(
+            f"the views of {len(wanted)} failures were not drawn ({_one_line(err)}); "
+            "run the same command again to draw them"
+        )
+    if stopped:
+        result.wall_time_s = time.monotonic() - t0
+        raise CampaignInterrupted(
+            f"interrupted while drawing the views of failures: all {result.n_recorded} missions "
+            f"are recorded in {out}; run the same command again to draw the rest",
+            result,
+        )

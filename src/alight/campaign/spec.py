@@ -22,7 +22,8 @@ grid's product plus the explicit ones, times ``sample.n``) is counted from the f
 expanded, and a campaign of more than :data:`MAX_MISSIONS` is refused with one line. Each planned mission
 holds its whole scenario (10-25 kB, 0.3 ms to expand), so the cap keeps the expansion under a minute and a
 few GB; a bigger study is several campaigns. With ``limit`` (``alight campaign --limit N``) only the
-conditions of the first ``N`` missions are expanded, and the cap applies to those.
+conditions of the first ``N`` missions are expanded, grid points and sampled draws alike (a ``sample.n``
+of a billion with ``--limit 1`` draws one condition), and the cap applies to those.
 """
 
 from __future__ import annotations
@@ -303,13 +304,41 @@ def count_missions(spec: CampaignSpec) -> int:
     return n_conditions * spec.seeds_per_condition * n_presets
 
 
+_Groups = dict[str, tuple[str, dict[str, Any]]]
+"""A campaign's groups: label -> (preset, block overrides); a preset stands for itself, a block set
+for its blocks over its preset."""
+_Dist = Uniform | LogUniform | Normal | Choice
+
+
 def expand_campaign(
     spec: CampaignSpec, *, source: str = "campaign", base_dir: Path | None = None, limit: int | None = None
 ) -> tuple[list[Condition], list[PlannedMission], list[str], list[str]]:
     """Conditions, missions, swept parameter paths and presets of ``spec``; raises ``ConfigError``.
 
-    ``limit``: expand only the conditions of the first ``limit`` missions (and return those missions).
-    More than :data:`MAX_MISSIONS` missions (after ``limit``) is a ``ConfigError``."""
+    ``limit``: expand only the conditions of the first ``limit`` missions (and return those missions):
+    grid points and sampled draws alike are made lazily, so a limit on a huge campaign costs only its
+    head. More than :data:`MAX_MISSIONS` missions (after ``limit``) is a ``ConfigError``."""
+    wanted = _wanted_missions(spec, source, limit)
+    base = _base_scenario(spec, source, base_dir or Path.cwd())
+    if spec.duration_s is not None:
+        base = base.model_copy(update={"duration_s": spec.duration_s})
+    base_tree = base.model_dump(mode="json")
+    groups = _preset_groups(spec, base.preset, source)
+    presets = list(groups)
+    paths, dists, n_draws = _swept_parameters(spec, base_tree, source)
+    n_conditions = -(-wanted // (spec.seeds_per_condition * len(presets)))
+    raw_conditions = _raw_conditions(spec, dists, n_draws, n_conditions, source)
+    conditions, trees = _validated_conditions(raw_conditions, base_tree, groups, paths, source)
+    unknown = sorted(set(spec.same_seeds_across) - set(paths))
+    if unknown:
+        raise ConfigError(f"{source}: same_seeds_across names {unknown}, which the campaign does not sweep")
+    missions = _planned_missions(spec, conditions, trees, groups, paths, wanted)
+    return conditions, missions, paths, presets
+
+
+def _wanted_missions(spec: CampaignSpec, source: str, limit: int | None) -> int:
+    """How many missions to expand: all, or the first ``limit``; over :data:`MAX_MISSIONS` is refused
+    from the count alone, before anything is expanded."""
     if limit is not None and limit < 1:
         raise ConfigError(f"{source}: the mission limit must be >= 1, got {limit}")
     total = count_missions(spec)
@@ -319,19 +348,18 @@ def expand_campaign(
             f"{source}: the campaign expands to {total:,} missions, more than the {MAX_MISSIONS:,} "
             "one campaign may hold; split it (or fly its first missions with --limit)"
         )
+    return wanted
+
+
+def _preset_groups(spec: CampaignSpec, base_preset: str, source: str) -> _Groups:
+    """The campaign's groups in order, each preset known and each label listed once."""
     from alight.mission.presets import PRESETS  # late import: presets import the blocks
 
-    base = _base_scenario(spec, source, base_dir or Path.cwd())
-    if spec.duration_s is not None:
-        base = base.model_copy(update={"duration_s": spec.duration_s})
-    base_tree = base.model_dump(mode="json")
-
-    entries = list(spec.presets) if spec.presets is not None else [base.preset]
-    # label -> (preset, blocks overrides): a preset stands for itself; a block set for its blocks
-    groups: dict[str, tuple[str, dict[str, Any]]] = {}
+    entries = list(spec.presets) if spec.presets is not None else [base_preset]
+    groups: _Groups = {}
     for e in entries:
         label, preset_name, blocks = (
-            (e, e, {}) if isinstance(e, str) else (e.name, e.preset or base.preset, dict(e.blocks))
+            (e, e, {}) if isinstance(e, str) else (e.name, e.preset or base_preset, dict(e.blocks))
         )
         if preset_name not in PRESETS:
             raise ConfigError(
@@ -340,9 +368,14 @@ def expand_campaign(
         if label in groups:
             raise ConfigError(f"{source}: presets: '{label}' is listed twice")
         groups[label] = (preset_name, blocks)
-    presets = list(groups)
+    return groups
 
-    # -- the parameters and their check against the scenario's keys ---------------------------------------
+
+def _swept_parameters(
+    spec: CampaignSpec, base_tree: Mapping[str, Any], source: str
+) -> tuple[list[str], dict[str, _Dist], int]:
+    """The swept paths (grid, conditions, then sampled ones), each checked against the scenario's keys;
+    the sampled ones' distributions and the number of draws per condition (0 without ``sample``)."""
     paths: list[str] = []
     for key in spec.grid:
         _check_path(base_tree, key, f"{source}: grid")
@@ -354,7 +387,7 @@ def expand_campaign(
             _check_path(base_tree, key, f"{source}: conditions[{i}]")
             if key not in paths:
                 paths.append(key)
-    dists: dict[str, Uniform | LogUniform | Normal | Choice] = {}
+    dists: dict[str, _Dist] = {}
     n_draws = 0
     if spec.sample is not None:
         sample = dict(spec.sample)
@@ -377,23 +410,27 @@ def expand_campaign(
         for b in paths:
             if a != b and b.startswith(a + "."):
                 raise ConfigError(f"{source}: '{a}' and '{b}' overlap: sweep one or the other")
+    return paths, dists, n_draws
 
-    # -- the conditions -------------------------------------------------------------------------------------
-    # conditions needed for the first `wanted` missions (all of them without a limit); the grid's product
-    # is walked lazily so that a limit on a huge grid expands only its head
-    per_condition = spec.seeds_per_condition * len(presets)
-    n_needed = -(-wanted // per_condition)
-    n_base_needed = -(-n_needed // n_draws) if n_draws else n_needed
-    raw_conditions: list[dict[str, Any]] = []
+
+def _raw_conditions(
+    spec: CampaignSpec, dists: Mapping[str, _Dist], n_draws: int, n_conditions: int, source: str
+) -> list[dict[str, Any]]:
+    """The first ``n_conditions`` conditions (dotted path -> value) in expansion order. The grid's
+    product and the draws are walked lazily: a limit on a huge grid or a huge ``sample.n`` expands only
+    its head, and the draws it makes are the same as the full expansion's first ones (one generator,
+    drawn condition by condition, parameter by parameter)."""
+    n_base = -(-n_conditions // n_draws) if n_draws else n_conditions
+    raw: list[dict[str, Any]] = []
     if spec.grid:
         keys = list(spec.grid)
-        raw_conditions += [
+        raw += [
             dict(zip(keys, combo, strict=True))
-            for combo in itertools.islice(itertools.product(*spec.grid.values()), n_base_needed)
+            for combo in itertools.islice(itertools.product(*spec.grid.values()), n_base)
         ]
-    raw_conditions += [dict(c) for c in spec.conditions[: max(0, n_base_needed - len(raw_conditions))]]
+    raw += [dict(c) for c in spec.conditions[: max(0, n_base - len(raw))]]
     seen: dict[str, int] = {}
-    for i, cond in enumerate(raw_conditions):
+    for i, cond in enumerate(raw):
         key = json.dumps(cond, sort_keys=True)
         if key in seen:
             raise ConfigError(
@@ -401,24 +438,34 @@ def expand_campaign(
                 "more replicates come from seeds_per_condition"
             )
         seen[key] = i
-    if not raw_conditions:
-        raw_conditions = [{}]
-    if dists:
-        rng = sample_rng(spec.seed)
-        raw_conditions = [
-            {**cond, **{key: _draw(d, rng) for key, d in dists.items()}}
-            for cond in raw_conditions
-            for _ in range(n_draws)
-        ]
+    if not raw:
+        raw = [{}]
+    if not dists:
+        return raw
+    rng = sample_rng(spec.seed)
+    draws = (
+        {**cond, **{key: _draw(d, rng) for key, d in dists.items()}} for cond in raw for _ in range(n_draws)
+    )
+    return list(itertools.islice(draws, n_conditions))
 
+
+def _validated_conditions(
+    raw_conditions: list[dict[str, Any]],
+    base_tree: Mapping[str, Any],
+    groups: _Groups,
+    paths: list[str],
+    source: str,
+) -> tuple[list[Condition], list[dict[str, Any]]]:
+    """Each condition's scenario tree, validated for every group (one ``ConfigError`` naming the
+    condition), and the condition with its parameters as the scenario holds them."""
     conditions: list[Condition] = []
     trees: list[dict[str, Any]] = []
     for index, cond in enumerate(raw_conditions):
         cid = f"c{index:03d}"
-        tree = copy.deepcopy(base_tree)
+        tree = copy.deepcopy(dict(base_tree))
         for key, value in cond.items():
             _set(tree, key, value)
-        for preset in presets:
+        for preset in groups:
             try:
                 checked = Scenario.model_validate(_grouped(tree, *groups[preset]))
             except ValidationError as err:
@@ -428,14 +475,21 @@ def expand_campaign(
         # in the same form as result.json.
         dumped = checked.model_dump(mode="json")
         dumped["blocks"] = copy.deepcopy(tree.get("blocks"))  # without the last group's block set
-        tree = dumped
-        params = {p: _get(tree, p) for p in paths}
+        params = {p: _get(dumped, p) for p in paths}
         conditions.append(Condition(index, cid, params))
-        trees.append(tree)
+        trees.append(dumped)
+    return conditions, trees
 
-    unknown = sorted(set(spec.same_seeds_across) - set(paths))
-    if unknown:
-        raise ConfigError(f"{source}: same_seeds_across names {unknown}, which the campaign does not sweep")
+
+def _planned_missions(
+    spec: CampaignSpec,
+    conditions: list[Condition],
+    trees: list[dict[str, Any]],
+    groups: _Groups,
+    paths: list[str],
+    wanted: int,
+) -> list[PlannedMission]:
+    """The first ``wanted`` missions: condition by condition, replicate by replicate, group by group."""
     # The seed branch of a condition: its index among the distinct conditions once the parameters that
     # keep the seeds are left out (the condition's own index when there are none).
     seed_index: dict[tuple[tuple[str, str], ...], int] = {}
@@ -451,7 +505,7 @@ def expand_campaign(
             if len(missions) >= wanted:
                 break  # the limit is reached: the rest is never expanded
             seed = mission_seed(spec.seed, branch, r)
-            for preset in presets:
+            for preset in groups:
                 mid = mission_id(condition.condition_id, preset, r)
                 scenario = _grouped(tree, *groups[preset])
                 scenario["seed"] = seed
@@ -469,7 +523,7 @@ def expand_campaign(
                         scenario,
                     )
                 )
-    return conditions, missions[:wanted], paths, presets
+    return missions[:wanted]
 
 
 def campaign_from_dict(

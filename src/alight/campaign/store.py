@@ -4,82 +4,43 @@ results.csv is the campaign's record: one row per finished mission, appended by 
 only, flushed and fsynced before the next mission's result is handled. A row is written after the
 mission's directory is complete, so a row always means "done, with its files". A campaign killed in
 the middle of writing a row leaves a last line without its newline: ``ResultsStore.open`` cuts it off
-(that mission is flown again), and rejects any other damage with one line.
+(that mission is flown again), and rejects any other damage with one line. The file's columns and its
+one reader are :mod:`alight.campaign.results`.
 """
 
 from __future__ import annotations
 
-import csv
 import fcntl
-import io
 import json
 import math
 import os
 import shutil
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import IO, Any
 
+# results.csv's columns, cell rule and reader live in alight.campaign.results; re-exported here, where
+# the campaign's other files are
+from alight.campaign.results import BLOCK_TIME_COLUMN as BLOCK_TIME_COLUMN
+from alight.campaign.results import BLOCK_TIME_COLUMNS as BLOCK_TIME_COLUMNS
+from alight.campaign.results import ID_COLUMNS as ID_COLUMNS
+from alight.campaign.results import NUMERIC_COLUMNS as NUMERIC_COLUMNS
+from alight.campaign.results import RESULT_COLUMNS as RESULT_COLUMNS
+from alight.campaign.results import RESULTS_CSV as RESULTS_CSV
+from alight.campaign.results import cell as cell
+from alight.campaign.results import columns_for as columns_for
+from alight.campaign.results import read_header, write_csv_line
+from alight.campaign.results import read_rows as read_rows
 from alight.errors import InputError
 from alight.evaluation.result import OUTCOMES as OUTCOMES  # re-exported: the report reads it here
-from alight.evaluation.result import SCENARIO_YAML, MissionResult, write_scenario_yaml
-from alight.types import PIPELINE_BLOCKS
+from alight.evaluation.result import SCENARIO_YAML, write_scenario_yaml
 
-RESULTS_CSV = "results.csv"
 SUMMARY_JSON = "summary.json"
 LOCK_JSON = "campaign.lock.json"
 CAMPAIGN_YAML = "campaign.yaml"
 MISSIONS_DIR = "missions"
 ERROR_TXT = "error.txt"
 RESULT_JSON = "result.json"
-
-ID_COLUMNS = ("mission_id", "condition_id", "preset", "replicate", "seed")
-BLOCK_TIME_COLUMN = {block: f"{block}_time_s" for block in PIPELINE_BLOCKS}
-"""The column of each pipeline block's wall time in the mission (s), from ``result.json``'s
-``block_time_s``."""
-BLOCK_TIME_COLUMNS = tuple(BLOCK_TIME_COLUMN.values())
-RESULT_COLUMNS = (*MissionResult.columns(), "mission_dir", "error")
-"""The result columns, from :class:`alight.evaluation.result.MissionResult` (the one list)."""
-NUMERIC_COLUMNS = MissionResult.numeric_columns()
-
-
-def columns_for(swept_parameters: Sequence[str]) -> list[str]:
-    """results.csv's header for a campaign sweeping ``swept_parameters`` (dotted paths)."""
-    return [*ID_COLUMNS, *swept_parameters, *RESULT_COLUMNS]
-
-
-def cell(value: Any) -> str:
-    """A value as a results.csv cell: empty for missing or non-finite, 0/1 for booleans, the shortest
-    round-trip repr for floats, JSON for lists and mappings, one line for text."""
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "1" if value else "0"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else ""
-    if isinstance(value, list | tuple | dict):
-        return json.dumps(value, separators=(",", ":"))
-    return " ".join(str(value).split())
-
-
-def parse_float(text: str | None) -> float | None:
-    """A numeric cell back as a float; None for an empty or missing cell and for one that is not a number
-    (a damaged results.csv: hand-edited, or a disk error), which then counts as missing, like an empty one,
-    rather than stopping the summary, the report or a resume. ``nan`` and ``inf`` read as themselves."""
-    if text is None or text == "":
-        return None
-    try:
-        return float(text)
-    except ValueError:
-        return None
-
-
-def _line(values: Sequence[str]) -> str:
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow(values)
-    return buf.getvalue()
 
 
 def _fsync_dir(path: Path) -> None:
@@ -119,10 +80,10 @@ class ResultsStore:
         try:
             if b"\n" not in path.read_bytes():
                 # new, or killed while writing the header: nothing was recorded yet
-                _write_synced(path, _line(columns))
+                _write_synced(path, write_csv_line(columns))
                 return cls(path, columns, [], handle)
             rows = read_rows(path, repair=True)
-            found = _header(path)
+            found = read_header(path)
             if found != columns:
                 raise InputError(
                     f"{path}: its columns are not this campaign's ({_diff(found, columns)}); "
@@ -136,7 +97,7 @@ class ResultsStore:
     def append(self, row: Mapping[str, Any]) -> None:
         """Write one row and make it durable (flush + fsync) before returning."""
         values = [cell(row.get(c)) for c in self.columns]
-        self._file.write(_line(values))
+        self._file.write(write_csv_line(values))
         self._file.flush()
         os.fsync(self._file.fileno())
         as_text = dict(zip(self.columns, values, strict=True))
@@ -164,51 +125,6 @@ def _write_synced(path: Path, text: str) -> None:
         f.flush()
         os.fsync(f.fileno())
     _fsync_dir(path.parent)
-
-
-def _header(path: Path) -> list[str]:
-    with path.open(encoding="utf-8", newline="") as f:
-        return next(csv.reader(f), [])
-
-
-def read_rows(path: str | Path, *, repair: bool = False) -> list[dict[str, str]]:
-    """The rows of a results.csv (column -> cell text). A last line without its newline (a write cut
-    short by a kill) is ignored, and with ``repair`` removed from the file; a header cut short is
-    rewritten only with ``repair`` (there are no rows then). Any other damage raises ``InputError``."""
-    p = Path(path)
-    try:
-        data = p.read_bytes()
-    except OSError as err:
-        raise InputError(f"{p}: cannot read ({err.strerror})") from None
-    if data and not data.endswith(b"\n"):
-        keep = data.rfind(b"\n") + 1
-        if repair:
-            with p.open("r+b") as f:
-                f.truncate(keep)
-                f.flush()
-                os.fsync(f.fileno())
-        data = data[:keep]
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError(f"{p}: not a UTF-8 text file") from None
-    lines = list(csv.reader(io.StringIO(text, newline="")))
-    if not lines:
-        raise InputError(f"{p}: no header line (an empty or cut-off results.csv)")
-    header = lines[0]
-    if "mission_id" not in header or "outcome" not in header:
-        raise InputError(f"{p}: not a campaign results.csv (no mission_id/outcome columns)")
-    rows: list[dict[str, str]] = []
-    seen: set[str] = set()
-    for number, values in enumerate(lines[1:], start=2):
-        if len(values) != len(header):
-            raise InputError(f"{p}: line {number} has {len(values)} cells, the header {len(header)}")
-        row = dict(zip(header, values, strict=True))
-        if row["mission_id"] in seen:
-            raise InputError(f"{p}: line {number}: mission {row['mission_id']} appears twice")
-        seen.add(row["mission_id"])
-        rows.append(row)
-    return rows
 
 
 def json_safe(value: Any) -> Any:

@@ -6,6 +6,10 @@ results.csv and the campaign's lock file.
 exception, a timeout, a dead worker). An error says nothing about landing, so the success rate and its
 interval are over the ``n_flown = n - errors`` missions that flew: ``success_rate = successes /
 n_flown`` (null when nothing flew).
+
+results.csv is read by :func:`alight.campaign.results.read_table`, as the report reads it: a damaged row
+is left out of every figure and listed in ``damaged_rows`` (``n_damaged_rows``), with the file's other
+problems in ``results_notes``; ``n_missions`` counts the rows the figures are computed from.
 """
 
 from __future__ import annotations
@@ -13,22 +17,22 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
 import alight
-from alight.campaign.store import (
+from alight.campaign.results import (
     BLOCK_TIME_COLUMN,
     RESULTS_CSV,
-    SUMMARY_JSON,
-    parse_float,
-    read_lock,
-    read_rows,
-    write_json,
+    Mission,
+    ResultsTable,
+    expected_cells,
+    figures_of,
+    read_table,
 )
+from alight.campaign.store import SUMMARY_JSON, read_lock, write_json
 from alight.errors import InputError
 from alight.types import PIPELINE_BLOCKS
 
@@ -67,27 +71,6 @@ class MissionFigures(Protocol):
     def values(self) -> Mapping[str, float | None]:
         """Numeric result columns (SI units, as in results.csv); None where a cell is empty."""
         ...
-
-
-@dataclass(frozen=True)
-class _Row:
-    """A results.csv row as :class:`MissionFigures`."""
-
-    outcome: str
-    success: bool
-    values: Mapping[str, float | None]
-
-
-_STAT_COLUMNS = (
-    "touchdown_error_m",
-    "time_to_land_s",
-    "energy_flight_J",
-    "energy_compute_J",
-    "simulated_time_s",
-    "wall_time_s",
-    *BLOCK_TIME_COLUMN.values(),
-)
-"""The numeric columns the group statistics read."""
 
 
 def _values(missions: Iterable[MissionFigures], column: str) -> list[float]:
@@ -181,25 +164,18 @@ def group_statistics(missions: Sequence[MissionFigures]) -> dict[str, Any]:
 
 
 def group_summary(rows: Sequence[Mapping[str, str]]) -> dict[str, Any]:
-    """:func:`group_statistics` of one group's results.csv rows."""
-    return group_statistics(
-        [
-            _Row(
-                r["outcome"],
-                r["success"] == "1",
-                {c: parse_float(r[c]) for c in _STAT_COLUMNS if r.get(c, "") != ""},
-            )
-            for r in rows
-        ]
-    )
+    """:func:`group_statistics` of one group's results.csv rows held as text, read by the column rules
+    (``ValueError`` for a cell that breaks its rule)."""
+    return group_statistics([figures_of(r) for r in rows])
 
 
-def summarize(rows: Sequence[Mapping[str, str]], lock: Mapping[str, Any]) -> dict[str, Any]:
-    """summary.json's content for results.csv ``rows`` of the campaign described by ``lock``."""
+def summarize(table: ResultsTable, lock: Mapping[str, Any]) -> dict[str, Any]:
+    """summary.json's content for results.csv (as read by ``read_table``) of the campaign described by
+    ``lock``."""
     presets = list(lock["presets"])
-    by_group: dict[tuple[str, str], list[Mapping[str, str]]] = {}
-    for r in rows:
-        by_group.setdefault((r["preset"], r["condition_id"]), []).append(r)
+    by_group: dict[tuple[str, str], list[Mission]] = {}
+    for m in table.missions:
+        by_group.setdefault((m.preset, m.condition_id), []).append(m)
     groups = []
     for cond in lock["conditions"]:
         for preset in presets:
@@ -208,19 +184,38 @@ def summarize(rows: Sequence[Mapping[str, str]], lock: Mapping[str, Any]) -> dic
                 continue
             groups.append(
                 {"preset": preset, "condition_id": cond["condition_id"], "params": cond["params"]}
-                | group_summary(members)
+                | group_statistics(members)
             )
     return {
         "campaign": lock["campaign"],
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "alight_version": alight.__version__,
-        "n_missions": len(rows),
+        "n_missions": len(table.missions),
         "n_planned": len(lock["missions"]),
-        "n_errors": sum(1 for r in rows if r["outcome"] == "error"),
+        "n_errors": sum(1 for m in table.missions if m.outcome == "error"),
+        "n_damaged_rows": len(table.damaged),
+        "damaged_rows": [d.as_json() for d in table.damaged],
+        "results_notes": list(table.notes),
         "presets": presets,
         "swept_parameters": list(lock["swept_parameters"]),
         "groups": groups,
     }
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def read_campaign_table(out_dir: Path, lock: Mapping[str, Any] | None) -> ResultsTable:
+    """``out_dir``'s results.csv read by the column rules, its rows checked against ``lock``'s plan when
+    there is one (the summary and the report read it so)."""
+    path = out_dir / RESULTS_CSV
+    if lock is None:
+        return read_table(path)
+    columns = lock.get("columns")
+    columns = [str(c) for c in columns] if isinstance(columns, list) else None
+    return read_table(path, expected=expected_cells(lock), columns=columns)
 
 
 def write_summary(out_dir: str | Path) -> Path:
@@ -230,7 +225,11 @@ def write_summary(out_dir: str | Path) -> Path:
     if lock is None:
         raise InputError(f"{out}: no campaign.lock.json (not a campaign output directory)")
     results = out / RESULTS_CSV
-    rows = read_rows(results) if results.is_file() else []
+    table = read_campaign_table(out, lock) if results.is_file() else ResultsTable(results, [], [], [])
     path = out / SUMMARY_JSON
-    write_json(path, summarize(rows, lock))
+    try:
+        summary = summarize(table, lock)
+    except (KeyError, TypeError, AttributeError) as err:  # a lock file edited by hand, or cut short
+        raise InputError(f"{out}: campaign.lock.json lacks what a summary needs ({_one_line(err)})") from None
+    write_json(path, summary)
     return path
