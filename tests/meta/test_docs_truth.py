@@ -33,6 +33,7 @@ OUTPUT_NAMES = {
     "results.csv",
     "views.txt",
     "error.txt",
+    "campaign.lock.json",
     "calib_results.txt",
     "Efficiency_Graphing.md",
 }
