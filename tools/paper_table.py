@@ -4,7 +4,7 @@
     alight campaign examples/campaigns/paper003_conditions.yaml --out runs/paper003_conditions
     alight campaign examples/campaigns/paper004_conditions.yaml --out runs/paper004_conditions
     python tools/paper_table.py runs/paper000_conditions runs/paper003_conditions \\
-        runs/paper004_conditions [MORE_RUN_DIRS...] --out docs/paper_conditions.md
+        runs/paper004_conditions [MORE_RUN_DIRS...] [--note TEXT] --out docs/paper_conditions.md
 
 One section per campaign output directory (a second run of the same file with another ``seed:`` is a
 second section, which is how a reader sees that the figures do not hang on the seeds in the repo). One
@@ -17,6 +17,7 @@ campaign's ``base`` shows as well as a swept one.
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from collections import Counter, defaultdict
@@ -132,7 +133,8 @@ def _campaign_line(run_dir: Path) -> str:
     lock_path = run_dir / "campaign.lock.json"
     lock = json.loads(lock_path.read_text(encoding="utf-8")) if lock_path.is_file() else {}
     name, seed = lock.get("campaign", run_dir.name), lock.get("campaign_seed", "?")
-    return f"Campaign `{name}`, campaign seed {seed} (output directory `{run_dir.name}`)."
+    n = lock.get("seeds_per_condition", "?")
+    return f"Campaign `{name}`, campaign seed {seed}, {n} seeds per cell (output directory `{run_dir.name}`)."
 
 
 def format_row(row: dict[str, Any]) -> str:
@@ -147,7 +149,7 @@ def format_row(row: dict[str, Any]) -> str:
     )
 
 
-def render(run_dirs: list[Path]) -> str:
+def render(run_dirs: list[Path], notes: list[str] | None = None) -> str:
     out = [
         "# The papers' own conditions, measured",
         "",
@@ -163,6 +165,8 @@ def render(run_dirs: list[Path]) -> str:
         "cell); the interval is the Wilson score 95 % interval of the landing rate. None of the three papers",
         "gives a landing rate: the last column is the evidence each paper does give for the condition.",
     ]
+    for note in notes or []:
+        out += ["", note]
     header = "| preset | cell | landed / n | rate | 95 % Wilson | >= 95 % | not landed | paper's own result |"
     for run_dir in run_dirs:
         rows = cell_rows(run_dir)
@@ -174,18 +178,22 @@ def render(run_dirs: list[Path]) -> str:
 
 
 def main(argv: list[str]) -> int:
-    out_path: Path | None = None
-    if len(argv) >= 2 and argv[-2] == "--out":
-        out_path, argv = Path(argv[-1]), argv[:-2]
-    if not argv or any(a.startswith("-") for a in argv):
-        print("usage: python tools/paper_table.py RUN_DIR [RUN_DIR...] [--out FILE]", file=sys.stderr)
-        return 2
-    run_dirs = [Path(a) for a in argv]
+    parser = argparse.ArgumentParser(
+        prog="tools/paper_table.py", description="docs/paper_conditions.md from campaign outputs"
+    )
+    parser.add_argument("run_dirs", nargs="+", type=Path, help="campaign output directories")
+    parser.add_argument("--out", type=Path, help="write the table here (default: standard output)")
+    parser.add_argument("--note", action="append", default=[], help="a paragraph for the introduction")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:
+        return int(exit_.code or 0)
+    run_dirs, out_path = list(args.run_dirs), args.out
     for d in run_dirs:
         if not (d / "results.csv").is_file():
             print(f"{d / 'results.csv'}: no such file (run the campaign first)", file=sys.stderr)
             return 2
-    text = render(run_dirs)
+    text = render(run_dirs, args.note)
     if out_path is None:
         sys.stdout.write(text)
     else:
