@@ -359,6 +359,8 @@ def test_precland_land_detector_disarms_on_the_pad() -> None:
         ap.handle(mav.decode(bytearray(mav.command_long_encode(1, 1, cmd, 0, *p).pack(mav))))
 
     try:
+        # the companion shows itself first: only the peer's commands act
+        ap.handle(mav.decode(bytearray(mav.heartbeat_encode(18, 8, 0, 0, 0).pack(mav))))
         command(176, 1, 4, 2)  # AUTO.TAKEOFF
         command(400, 1)
         w = ap.world
