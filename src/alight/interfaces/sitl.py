@@ -363,6 +363,33 @@ def position_control(
     return thrust, w_cmd
 
 
+class Outbox:
+    """The emulator's outgoing messages, sent in datagrams of up to ``max_bytes`` to every client: a 200 Hz
+    IMU plus the other streams, one datagram per message, came to thousands of datagrams per second at 8x
+    real time, more than a Python ground station (MAVProxy) reads before its socket buffer overflows and
+    drops replies. MAVLink parsers take several messages per datagram."""
+
+    def __init__(self, conn: Any, max_bytes: int = 1400) -> None:
+        self.conn = conn
+        self.max_bytes = max_bytes
+        self.buf = bytearray()
+
+    def write(self, data: bytes) -> None:
+        if len(self.buf) + len(data) > self.max_bytes:
+            self.flush()
+        self.buf += data
+
+    def flush(self) -> None:
+        if not self.buf:
+            return
+        for addr in list(self.conn.clients):
+            try:
+                self.conn.port.sendto(self.buf, addr)
+            except OSError:  # a client gone away (ICMP unreachable) or a full buffer: the datagram is lost
+                pass
+        self.buf.clear()
+
+
 def euler_of_mavlink_q(q: FloatArray) -> tuple[float, float, float]:
     """Roll, pitch, yaw (rad, ZYX, NED/FRD: ATTITUDE's angles) of a MAVLink quaternion (w, x, y, z)."""
     w, x, y, z = (float(c) for c in q)
@@ -399,6 +426,8 @@ class EmulatedAutopilot:
         except OSError as err:
             raise InputError(f"sitl: cannot listen on udp {config.host}:{config.port} ({err})") from None
         self.mav = self.conn.mav
+        self.outbox = Outbox(self.conn)
+        self.mav.file = self.outbox  # pymavlink's MAVLink.send writes each packed message to its file
         cam_port = config.port + 1 if config.camera_port is None else config.camera_port
         # Also the side channel for the verdict and the truth log, so it exists without a camera too.
         self.frames = FrameServer(config.host, cam_port)
@@ -415,6 +444,7 @@ class EmulatedAutopilot:
         self.target: dict[str, Any] | None = None  # alpha-beta state of the landing target
         self.peer_seen = False
         self._ack_to = (0, 0)  # the sender of the command being answered
+        self._after_ack: Callable[[EmulatedAutopilot], None] | None = None  # a reply due after the ACK
         self.peer: tuple[Any, int, int] | None = None  # (address, sysid, compid) of the accepted companion
         self.foreign = 0  # messages refused because they did not come from the peer
         self.parse_errors = 0
@@ -719,6 +749,9 @@ class EmulatedAutopilot:
         if global_e7:  # lat/lon as degE7 integers: degrees, the same as COMMAND_LONG carries
             p[4], p[5] = p[4] * 1e-7, p[5] * 1e-7
         self._ack(cmd, handler(self, p, frame))
+        then, self._after_ack = self._after_ack, None
+        if then is not None:  # a requested message follows its ACK, as the command protocol has it
+            then(self)
 
     def _cmd_arm_disarm(self, p: list[float], frame: int | None) -> int:
         t = self.world.t
@@ -842,7 +875,7 @@ class EmulatedAutopilot:
         sender = _ON_REQUEST.get(msg_id) if msg_id is not None else None
         if sender is None:
             return int(mavlink.MAV_RESULT_UNSUPPORTED)
-        sender(self)
+        self._after_ack = sender
         return int(mavlink.MAV_RESULT_ACCEPTED)
 
     def _cmd_message_interval(self, p: list[float], frame: int | None) -> int:
@@ -852,11 +885,11 @@ class EmulatedAutopilot:
         return int(mavlink.MAV_RESULT_ACCEPTED if msg_id in _STREAMED else mavlink.MAV_RESULT_UNSUPPORTED)
 
     def _cmd_autopilot_capabilities(self, p: list[float], frame: int | None) -> int:
-        self._send_autopilot_version()
+        self._after_ack = EmulatedAutopilot._send_autopilot_version
         return int(mavlink.MAV_RESULT_ACCEPTED)
 
     def _cmd_home_position(self, p: list[float], frame: int | None) -> int:
-        self._send_home_position()
+        self._after_ack = EmulatedAutopilot._send_home_position
         return int(mavlink.MAV_RESULT_ACCEPTED)
 
     # -- parameters, mission, FTP: what a ground station asks on connecting -------------------------
@@ -1183,6 +1216,7 @@ class EmulatedAutopilot:
         deadline = time.monotonic() + timeout_s
         self.frames.accept()  # the camera client receives the scenario at once
         while True:
+            self.outbox.flush()
             while True:
                 try:
                     data, addr = sock.recvfrom(65535)
@@ -1191,6 +1225,7 @@ class EmulatedAutopilot:
                 self.conn.clients.add(addr)  # every sender receives the telemetry (a ground station too)
                 self.conn.clients_last_alive[addr] = time.time()
                 self.receive(data, addr)
+            self.outbox.flush()  # the answers
             if until_acked and self._wait_satisfied():
                 return
             remaining = deadline - time.monotonic()
@@ -1267,7 +1302,9 @@ class EmulatedAutopilot:
                 ahead = w.t / speed - (time.monotonic() - wall_start)
                 if ahead > 0:
                     self._poll(ahead)
-        return self._finish(time.monotonic() - wall_start)
+        result = self._finish(time.monotonic() - wall_start)
+        self.outbox.flush()
+        return result
 
     def _finish(self, wall_s: float) -> dict[str, Any]:
         w = self.world
@@ -1294,6 +1331,7 @@ class EmulatedAutopilot:
         return {k: np.array(v, dtype=float) for k, v in self.log.items()}
 
     def close(self) -> None:
+        self.outbox.flush()
         self.frames.close()
         self.conn.close()
 
