@@ -25,13 +25,37 @@ What it emulates
 ----------------
 * HEARTBEAT both ways (1 Hz; the autopilot's carries ``base_mode`` with the armed flag and the custom
   mode encoded as PX4 does, ``main << 16 | sub << 24``, or ArduCopter's mode number).
-* Modes. PX4: POSCTL (3) and AUTO.LOITER (4/3) hold position, OFFBOARD (6), AUTO.TAKEOFF (4/2),
-  AUTO.LAND (4/6), AUTO.PRECLAND (4/9); MANUAL (1) is treated as a hold (there is no RC). ArduCopter:
-  STABILIZE (0), LOITER (5), POSHOLD (16) hold, GUIDED (4) takes setpoints, LAND (9) is a precision
-  land when LANDING_TARGET messages arrive (as with ``PLND_ENABLED`` = 1), a plain land otherwise.
-* ``MAV_CMD_DO_SET_MODE`` (176) and ``MAV_CMD_COMPONENT_ARM_DISARM`` (400), ``MAV_CMD_NAV_TAKEOFF`` (22,
-  param7 = height above the take-off point; a real PX4 reads param7 as AMSL), each answered with
-  COMMAND_ACK. Disarming in the air is refused unless forced (param2 = 21196), as on PX4.
+* Modes, reported as commanded. PX4: AUTO.LOITER (4/3, "Hold", also after a take-off, a goto or the
+  hold failsafe), POSCTL (3), ALTCTL (2), STABILIZED (7) and MANUAL (1) hold position (there is no RC),
+  OFFBOARD (6), AUTO.TAKEOFF (4/2), AUTO.LAND (4/6), AUTO.PRECLAND (4/9), AUTO.RTL (4/5: climb to
+  ``RTL_RETURN_ALT``, fly home, land there); AUTO.MISSION (4/4) is refused (no mission). ArduCopter:
+  STABILIZE (0), ALT_HOLD (2), LOITER (5), POSHOLD (16), BRAKE (17) hold, GUIDED (4) takes setpoints
+  and stays GUIDED after its take-off, LAND (9) is a precision land when LANDING_TARGET messages arrive
+  (as with ``PLND_ENABLED`` = 1), a plain land otherwise, RTL (6); AUTO (3) is refused.
+* Commands, as COMMAND_LONG or COMMAND_INT (x, y in degE7), every field read defensively (MAVSDK sends
+  NaN in unused parameters; NaN, inf and out-of-range values never raise), each answered with a
+  COMMAND_ACK to its sender: DO_SET_MODE (176), COMPONENT_ARM_DISARM (400; a disarm in the air is
+  refused unless forced, param2 = 21196, as on PX4), NAV_TAKEOFF (22; PX4 reads param7 as the altitude
+  AMSL, NaN: ``MIS_TAKEOFF_ALT``; ArduCopter as the height above home, in GUIDED only), NAV_LAND (21),
+  NAV_RETURN_TO_LAUNCH (20), DO_REPOSITION (192, MAVSDK's goto), REQUEST_MESSAGE (512),
+  SET_MESSAGE_INTERVAL (511; accepted for the streamed messages, whose rates stay the emulator's),
+  REQUEST_AUTOPILOT_CAPABILITIES (520), GET_HOME_POSITION (410); any other is answered UNSUPPORTED.
+* Only the peer acts: the first HEARTBEAT from another system fixes it (address, system and component
+  id); commands, setpoints, heartbeats, LANDING_TARGET, PARAM_SET, mission uploads and lockstep
+  acknowledgements from anyone else are dropped and counted (``foreign``); read-only requests
+  (parameters, mission list, TIMESYNC, FTP) are answered for any sender, and every sender receives the
+  telemetry (a monitoring ground station). A lockstep acknowledgement of a time not yet simulated is
+  ignored.
+* Parameters (PARAM_REQUEST_LIST / _READ, PARAM_SET) with the autopilot's names, each acting on the
+  emulator (:func:`alight.interfaces.sitl_protocol.param_table`; integers bytewise on PX4, cast on
+  ArduPilot, as AUTOPILOT_VERSION's capabilities say); the mission protocol with an empty mission
+  (MISSION_COUNT 0; an upload is refused with MAV_MISSION_UNSUPPORTED); FTP answered with NAKs (no
+  file system).
+* The telemetry ground stations wait for: GLOBAL_POSITION_INT 10 Hz (from the odometry estimate),
+  GPS_RAW_INT 5 Hz (a 3D fix at the true position), ATTITUDE 50 Hz, SYS_STATUS and BATTERY_STATUS 1 Hz
+  (no battery model: voltage and charge unknown, the motors' energy so far), HOME_POSITION 1 Hz and on
+  request, AUTOPILOT_VERSION on request; the world origin lies at PX4 SITL's default home (47.397742 N,
+  8.545594 E, 488 m), mapped on a local tangent plane. Messages go out in datagrams of up to 1400 bytes.
 * The offboard rules: OFFBOARD (or GUIDED) is refused unless setpoints have streamed for more than
   ``offboard_min_stream_s`` (1 s); in OFFBOARD, no setpoint for ``offboard_loss_s`` (PX4's
   ``COM_OF_LOSS_T``, 1 s; ArduPilot's ``GUID_TIMEOUT`` is 3 s) triggers the failsafe action
@@ -50,7 +74,8 @@ What it emulates
   with noise and drift, in LOCAL_NED, velocity in the same frame), DISTANCE_SENSOR 100 Hz (the range
   finder, downward, cm, with the sensor's span in min/max_distance; out of range, see
   :func:`distance_sensor_fields`), EXTENDED_SYS_STATE 5 Hz (on the ground before take-off, after its
-  land detector or a disarm after the flight), and answers to TIMESYNC requests.
+  land detector, or disarmed and resting on a surface after the flight, not while it falls; taking
+  off, landing, in the air otherwise), and answers to TIMESYNC requests.
 * A land detector in its LAND and PRECLAND modes (:meth:`EmulatedAutopilot._land_detector`): a descent
   commanded, no vertical motion and the range finder at the floor for 0.5 s, then it disarms. In
   OFFBOARD it leaves the decision to the companion (PX4 would idle the motors on a thrust of 0 and
