@@ -11,6 +11,18 @@ bits. Counts: exceptions that escape ``MavlinkBridge.feed_bytes`` (must be 0), n
 reach the pipeline's ``on_imu`` / ``on_odometry`` / ``on_range`` (must be 0; a range may be +-inf, the
 sensor's out-of-range readings, but never NaN), and the longest time one buffer took (a hang shows
 there). Prints one JSON line.
+
+    python benchmarks/fuzz_mavlink.py --target emulator [--n 100000] [--seed 0]
+
+Fuzzes the emulated autopilot's receive path (``EmulatedAutopilot.receive``, what ``alight sitl`` does with
+each datagram) the same way, with two emulators of the same scenario and seed flying side by side: both
+get the peer's datagrams (a scripted companion that takes off and holds, plus its own random bytes,
+mutated and truncated messages and flipped bits), and the first also gets datagrams from senders that
+are not the peer (random bytes, valid commands, heartbeats, setpoints and lockstep acknowledgements with
+NaN / inf / absurd fields, and spoofs that carry the peer's system and component ids from another
+address). The simulated clock advances one control period every 20 datagrams. Counts: exceptions that
+escape ``receive`` or the control step (must be 0), and the state differences between the two emulators
+at each checkpoint (``outcome_changes``: what a sender that is not the peer changed; must be 0).
 """
 
 from __future__ import annotations
@@ -212,12 +224,176 @@ def run(n: int = 100_000, seed: int = 0) -> dict[str, Any]:
     }
 
 
+# -- the emulated autopilot ------------------------------------------------------------------------------
+PEER_ADDR, OTHER_ADDRS = ("127.0.0.1", 40000), [("127.0.0.1", 40001 + i) for i in range(8)]
+
+
+def _emulator_templates(mav: Any) -> list[Any]:
+    """Valid messages a companion or a ground station sends (before mutation)."""
+    nan = math.nan
+    return [
+        mav.heartbeat_encode(18, 8, 0, 0, 0),
+        mav.command_long_encode(1, 1, 400, 0, 0, 21196, nan, nan, nan, nan, nan),  # forced disarm
+        mav.command_long_encode(1, 1, 400, 0, 1, nan, nan, nan, nan, nan, nan),
+        mav.command_long_encode(1, 1, 176, 0, 1, 4, 6, nan, nan, nan, nan),  # AUTO.LAND
+        mav.command_long_encode(1, 1, 22, 0, nan, nan, nan, nan, nan, nan, 495.0),
+        mav.command_long_encode(1, 1, 21, 0, nan, nan, nan, nan, nan, nan, nan),
+        mav.command_long_encode(1, 1, 512, 0, 148, nan, nan, nan, nan, nan, nan),
+        mav.command_long_encode(1, 1, 511, 0, 105, 5000, nan, nan, nan, nan, nan),
+        mav.command_int_encode(1, 1, 6, 192, 0, 0, -1, 1, 0, nan, 473977420, 85455940, 3.0),
+        mav.command_int_encode(1, 1, 0, 20, 0, 0, nan, nan, nan, nan, 0, 0, nan),
+        mav.set_position_target_local_ned_encode(0, 1, 1, 1, 2552, 1.0, 2.0, -3.0, 0, 0, 0, 0, 0, 0, 0.5, 0),
+        mav.set_attitude_target_encode(0, 1, 1, 7, [1, 0, 0, 0], 0.1, 0.0, 0.0, 0.6),
+        mav.landing_target_encode(0, 0, 1, 0, 0, 0, 0, 0, 1.0, 2.0, 0.0, [1, 0, 0, 0], 2, 1),
+        mav.named_value_int_encode(10_000_000, b"LSACK", 0),
+        mav.param_set_encode(1, 1, b"COM_OF_LOSS_T", 0.2, 9),
+        mav.param_request_read_encode(1, 1, b"MIS_TAKEOFF_ALT", -1),
+        mav.param_request_list_encode(1, 1),
+        mav.mission_request_list_encode(1, 1, 0),
+        mav.mission_count_encode(1, 1, 5, 0),
+        mav.file_transfer_protocol_encode(0, 1, 1, [0, 0, 0, 4] + [0] * 247),
+        mav.timesync_encode(0, 123),
+    ]
+
+
+def _emulator_state(ap: Any) -> tuple[Any, ...]:
+    w = ap.world
+    params = tuple(sorted((k, v.value) for k, v in ap.params.items()))
+    return (round(w.t, 6), tuple(np.round(w.x, 9)), ap.mode.value, ap.custom_mode, ap.armed, ap.ack_t,
+            ap.peer_lockstep, w.outcome, params, len(ap.events))  # fmt: skip
+
+
+def _fuzz_datagram(rng: np.random.Generator, mav: Any, templates: list[Any]) -> bytes | None:
+    kind = int(rng.integers(4))
+    if kind == 0:  # random bytes, half with the MAVLink 2 start byte
+        data = bytes(rng.integers(0, 256, size=int(rng.integers(1, 300)), dtype=np.uint8))
+        return b"\xfd" + data if rng.random() < 0.5 else data
+    msg = templates[int(rng.integers(len(templates)))]
+    if kind == 1:  # NaN, inf, absurd values in any field, the CRC valid
+        try:
+            return bytes(_mutate(msg, rng).pack(mav))
+        except Exception:  # noqa: BLE001 - a mutation pymavlink cannot pack: not an input
+            return None
+    full = bytes(msg.pack(mav))
+    if kind == 2:  # truncated
+        return full[: int(rng.integers(1, len(full)))]
+    buf = bytearray(full)  # flipped bits
+    for _ in range(int(rng.integers(1, 4))):
+        buf[int(rng.integers(len(buf)))] ^= 1 << int(rng.integers(8))
+    return bytes(buf)
+
+
+def _emulator_pair(seed: int) -> tuple[Any, Any]:
+    from alight.interfaces.sitl import EmulatedAutopilot, SitlConfig
+
+    scenario = Scenario.model_validate({"preset": "groundtruth", "seed": seed, "duration_s": 3600.0})
+    config = SitlConfig(port=0, camera_port=0, lockstep=True)
+    return EmulatedAutopilot(scenario, config), EmulatedAutopilot(scenario, config)
+
+
+def run_emulator(n: int = 100_000, seed: int = 0) -> dict[str, Any]:
+    """Fuzz ``n`` datagrams into the emulator's receive path; returns the counts (module docstring)."""
+    from pymavlink.dialects.v20 import common as mav2
+
+    rng = np.random.default_rng(seed)
+    fuzzed, reference = _emulator_pair(seed)
+    peer = mav2.MAVLink(None, 1, 191)  # the companion's ids (and the spoofers')
+    stranger = mav2.MAVLink(None, 7, 190)
+    templates = _emulator_templates(peer)
+    # The peer's own fuzz leaves out its commands (a mutated forced disarm would end the flight early and
+    # leave little to fuzz); strangers and spoofers send everything.
+    peer_templates = [m for m in templates if m.get_type() not in ("COMMAND_LONG", "COMMAND_INT")]
+    script = [
+        peer.heartbeat_encode(18, 8, 0, 0, 0),
+        peer.command_long_encode(1, 1, 176, 0, 1, 4, 2, 0, 0, 0, 0),
+        peer.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0),
+    ]
+    for msg in script:  # the peer shows itself, asks for AUTO.TAKEOFF and arms: the world flies
+        for ap in (fuzzed, reference):
+            ap.receive(bytes(msg.pack(peer)), PEER_ADDR)
+    exits: dict[str, int] = {}
+    changes = checkpoints = foreign_sent = 0
+    counts = {"peer": 0, "foreign": 0, "spoofed": 0}
+    max_s = 0.0
+    t0 = time.perf_counter()
+    for i in range(n):
+        who = rng.random()
+        if who < 0.4:
+            sender, addr, targets = peer, PEER_ADDR, (fuzzed, reference)
+            counts["peer"] += 1
+        else:  # not the peer: another system, or the peer's own ids from another address
+            spoofed = who < 0.7
+            sender = peer if spoofed else stranger
+            addr, targets = OTHER_ADDRS[int(rng.integers(len(OTHER_ADDRS)))], (fuzzed,)
+            counts["spoofed" if spoofed else "foreign"] += 1
+            foreign_sent += 1
+        data = _fuzz_datagram(rng, sender, peer_templates if targets[-1] is reference else templates)
+        start = time.perf_counter()
+        for ap in targets if data is not None else ():
+            try:
+                ap.receive(data, addr)
+            except Exception as err:  # noqa: BLE001 - what the fuzzer exists to count
+                key = f"receive {type(err).__name__}: {str(err)[:80]}"
+                exits[key] = exits.get(key, 0) + 1
+        max_s = max(max_s, time.perf_counter() - start)
+        if i % 20 == 19:  # one control period of simulated time
+            for ap in (fuzzed, reference):
+                try:
+                    _emulator_period(ap)
+                except Exception as err:  # noqa: BLE001
+                    key = f"control {type(err).__name__}: {str(err)[:80]}"
+                    exits[key] = exits.get(key, 0) + 1
+            if i % 2000 == 1999:
+                checkpoints += 1
+                changes += _emulator_state(fuzzed) != _emulator_state(reference)
+    wall = time.perf_counter() - t0
+    result = {
+        "target": "emulator",
+        "datagrams": n,
+        "seed": seed,
+        "senders": counts,
+        "exits": sum(exits.values()),
+        "exits_by_type": exits,
+        "checkpoints": checkpoints,
+        "outcome_changes": changes,
+        "final_state_equal": _emulator_state(fuzzed) == _emulator_state(reference),
+        "refused_from_non_peers": fuzzed.foreign - reference.foreign,
+        "parse_errors": fuzzed.parse_errors,
+        "simulated_s": round(fuzzed.world.t, 2),
+        "final_mode": fuzzed.mode.value,
+        "armed": fuzzed.armed,
+        "max_datagram_s": round(max_s, 4),
+        "wall_time_s": round(wall, 2),
+    }
+    for ap in (fuzzed, reference):
+        ap.close()
+    return result
+
+
+def _emulator_period(ap: Any) -> None:
+    """One control period of the emulator without its socket loop: control, then the physics ticks."""
+    from alight.interfaces.sitl import CONTROL_DT, TICK_DT
+
+    w = ap.world
+    if w.done:
+        return
+    ap._control()
+    for _ in range(round(CONTROL_DT / TICK_DT)):
+        imu = w.step()
+        ap._send_sensors(imu)
+        if w.done:
+            break
+    ap.outbox.buf.clear()  # nobody listens
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=100_000, help="number of buffers")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--target", choices=("bridge", "emulator"), default="bridge")
     args = parser.parse_args()
-    print(json.dumps(run(args.n, args.seed)))
+    fuzz = run_emulator if args.target == "emulator" else run
+    print(json.dumps(fuzz(args.n, args.seed)))
 
 
 if __name__ == "__main__":

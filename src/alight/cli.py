@@ -432,6 +432,14 @@ def main(argv: list[str] | None = None) -> int:
     except AlightError as err:
         print(f"alight {args.command}: {err}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as err:
+        from alight.interfaces.optional_deps import missing_dependency_message
+
+        message = missing_dependency_message(err)
+        if message is None:
+            raise
+        print(f"alight {args.command}: {message}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"alight {args.command}: interrupted", file=sys.stderr)
         return 130

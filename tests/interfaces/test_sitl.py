@@ -360,6 +360,8 @@ def test_precland_land_detector_disarms_on_the_pad() -> None:
         ap.handle(mav.decode(bytearray(mav.command_long_encode(1, 1, cmd, 0, *p).pack(mav))))
 
     try:
+        # the companion shows itself first: only the peer's commands act
+        ap.handle(mav.decode(bytearray(mav.heartbeat_encode(18, 8, 0, 0, 0).pack(mav))))
         command(176, 1, 4, 2)  # AUTO.TAKEOFF
         command(400, 1)
         w = ap.world
@@ -385,3 +387,70 @@ def test_precland_land_detector_disarms_on_the_pad() -> None:
     assert w.contact is not None and w.contact.surface == "pad"
     assert w.final_outcome.value == "landed", (w.outcome_reason, ap.events[-5:])
     assert w.t_motors_off is not None and w.t_motors_off > w.t_contact  # type: ignore[operator]
+
+
+def test_nan_inf_fields_spoofed_senders_and_every_command_answered() -> None:
+    """What killed the emulator or fooled it before: NaN in DISARM's param2 (MAVSDK fills unused params
+    with NaN), inf in DO_SET_MODE's param1, a lockstep acknowledgement from a sender that is not the
+    peer (it ran the world ahead), a spoof of the peer's ids from another address; and a command it does
+    not have gets an ACK (UNSUPPORTED), COMMAND_INT included."""
+    scenario = Scenario.model_validate({"preset": "groundtruth", "duration_s": 5.0, "seed": 0})
+    ap = EmulatedAutopilot(scenario, SitlConfig(port=0, camera_port=0))
+    sent: list[Any] = []
+    ap.mav.send = lambda m, force_mavlink1=False: sent.append(m)  # type: ignore[method-assign]
+    peer, other = ("127.0.0.1", 40000), ("127.0.0.1", 40001)
+    mav = mavlink.MAVLink(None, 1, 191)
+    nan, inf = math.nan, math.inf
+
+    def feed(msg: Any, addr: tuple[str, int] = peer) -> list[tuple[int, int]]:
+        sent.clear()
+        ap.receive(bytes(msg.pack(mav)), addr)
+        return [(m.command, m.result) for m in sent if m.get_type() == "COMMAND_ACK"]
+
+    try:
+        assert feed(mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)) == []  # no peer yet
+        feed(mav.heartbeat_encode(18, 8, 0, 0, 0))
+        assert ap.peer == (peer, 1, 191)
+        r = mavlink.MAV_RESULT_ACCEPTED
+        assert feed(mav.command_long_encode(1, 1, 400, 0, 0, nan, nan, nan, nan, nan, nan)) == [(400, r)]
+        assert feed(mav.command_long_encode(1, 1, 176, 0, inf, 4, 3, nan, nan, nan, nan)) == [
+            (176, mavlink.MAV_RESULT_DENIED)
+        ]
+        unsupported = mavlink.MAV_RESULT_UNSUPPORTED
+        assert feed(mav.command_long_encode(1, 1, 31000, 0, nan, nan, nan, nan, nan, nan, nan)) == [
+            (31000, unsupported)
+        ]
+        assert feed(mav.command_int_encode(1, 1, 0, 31001, 0, 0, nan, nan, nan, nan, 0, 0, nan)) == [
+            (31001, unsupported)
+        ]
+        # not the peer: ignored, whatever it claims
+        acks_before = ap.ack_t
+        feed(mav.named_value_int_encode(60_000, b"LSACK", 0), other)
+        assert ap.ack_t == acks_before and not ap.peer_lockstep
+        assert feed(mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0), other) == []
+        assert not ap.armed and ap.foreign == 3  # (with the command sent before there was a peer)
+        # the peer cannot acknowledge a time not yet simulated either
+        feed(mav.named_value_int_encode(60_000, b"LSACK", 0))
+        assert ap.ack_t < 0.0
+        # read-only requests are answered for anyone
+        feed(mav.param_request_list_encode(1, 1), other)
+        assert [m.get_type() for m in sent].count("PARAM_VALUE") == len(ap.params)
+    finally:
+        ap.close()
+
+
+def test_short_fuzz_of_the_emulator_receive_path() -> None:
+    """A short run of ``benchmarks/fuzz_mavlink.py --target emulator``: no exit, and senders that are not
+    the peer change nothing (the 100,000-datagram run is in docs/interfaces.md)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "fuzz_mavlink.py"
+    spec = importlib.util.spec_from_file_location("fuzz_mavlink", path)
+    assert spec is not None and spec.loader is not None
+    fuzz = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fuzz)
+    r = fuzz.run_emulator(n=2000, seed=3)
+    assert r["exits"] == 0, r["exits_by_type"]
+    assert r["outcome_changes"] == 0 and r["final_state_equal"]
+    assert r["refused_from_non_peers"] > 50 and r["senders"]["spoofed"] > 100

@@ -327,8 +327,15 @@ class MavlinkBridge:
             self.stats.bad("pipeline")
             self._event("pipeline_rejected", error=str(err)[:120])
 
+    def _same_attitude(self, t: float) -> bool:
+        """An attitude stamped like the one just taken: the same estimate in the other message (an
+        autopilot sends both ATTITUDE_QUATERNION and ATTITUDE of each time); skipped, not an error."""
+        return self._last.get("attitude") == t
+
     def _on_attitude_quaternion(self, msg: Any) -> None:
         t = msg.time_boot_ms * 1e-3
+        if self._same_attitude(t):
+            return
         q = np.array([msg.q1, msg.q2, msg.q3, msg.q4], dtype=float)
         n = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else math.nan
         if not (0.9 < n < 1.1) or not self._fresh("attitude", t):
@@ -339,6 +346,8 @@ class MavlinkBridge:
 
     def _on_attitude(self, msg: Any) -> None:
         t = msg.time_boot_ms * 1e-3
+        if self._same_attitude(t):
+            return
         e = (msg.roll, msg.pitch, msg.yaw)
         if not (_finite(*e) and max(abs(v) for v in e) <= 2 * math.pi) or not self._fresh("attitude", t):
             self.stats.bad("ATTITUDE")

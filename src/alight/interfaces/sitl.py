@@ -25,13 +25,37 @@ What it emulates
 ----------------
 * HEARTBEAT both ways (1 Hz; the autopilot's carries ``base_mode`` with the armed flag and the custom
   mode encoded as PX4 does, ``main << 16 | sub << 24``, or ArduCopter's mode number).
-* Modes. PX4: POSCTL (3) and AUTO.LOITER (4/3) hold position, OFFBOARD (6), AUTO.TAKEOFF (4/2),
-  AUTO.LAND (4/6), AUTO.PRECLAND (4/9); MANUAL (1) is treated as a hold (there is no RC). ArduCopter:
-  STABILIZE (0), LOITER (5), POSHOLD (16) hold, GUIDED (4) takes setpoints, LAND (9) is a precision
-  land when LANDING_TARGET messages arrive (as with ``PLND_ENABLED`` = 1), a plain land otherwise.
-* ``MAV_CMD_DO_SET_MODE`` (176) and ``MAV_CMD_COMPONENT_ARM_DISARM`` (400), ``MAV_CMD_NAV_TAKEOFF`` (22,
-  param7 = height above the take-off point; a real PX4 reads param7 as AMSL), each answered with
-  COMMAND_ACK. Disarming in the air is refused unless forced (param2 = 21196), as on PX4.
+* Modes, reported as commanded. PX4: AUTO.LOITER (4/3, "Hold", also after a take-off, a goto or the
+  hold failsafe), POSCTL (3), ALTCTL (2), STABILIZED (7) and MANUAL (1) hold position (there is no RC),
+  OFFBOARD (6), AUTO.TAKEOFF (4/2), AUTO.LAND (4/6), AUTO.PRECLAND (4/9), AUTO.RTL (4/5: climb to
+  ``RTL_RETURN_ALT``, fly home, land there); AUTO.MISSION (4/4) is refused (no mission). ArduCopter:
+  STABILIZE (0), ALT_HOLD (2), LOITER (5), POSHOLD (16), BRAKE (17) hold, GUIDED (4) takes setpoints
+  and stays GUIDED after its take-off, LAND (9) is a precision land when LANDING_TARGET messages arrive
+  (as with ``PLND_ENABLED`` = 1), a plain land otherwise, RTL (6); AUTO (3) is refused.
+* Commands, as COMMAND_LONG or COMMAND_INT (x, y in degE7), every field read defensively (MAVSDK sends
+  NaN in unused parameters; NaN, inf and out-of-range values never raise), each answered with a
+  COMMAND_ACK to its sender: DO_SET_MODE (176), COMPONENT_ARM_DISARM (400; a disarm in the air is
+  refused unless forced, param2 = 21196, as on PX4), NAV_TAKEOFF (22; PX4 reads param7 as the altitude
+  AMSL, NaN: ``MIS_TAKEOFF_ALT``; ArduCopter as the height above home, in GUIDED only), NAV_LAND (21),
+  NAV_RETURN_TO_LAUNCH (20), DO_REPOSITION (192, MAVSDK's goto), REQUEST_MESSAGE (512),
+  SET_MESSAGE_INTERVAL (511; accepted for the streamed messages, whose rates stay the emulator's),
+  REQUEST_AUTOPILOT_CAPABILITIES (520), GET_HOME_POSITION (410); any other is answered UNSUPPORTED.
+* Only the peer acts: the first HEARTBEAT from another system fixes it (address, system and component
+  id); commands, setpoints, heartbeats, LANDING_TARGET, PARAM_SET, mission uploads and lockstep
+  acknowledgements from anyone else are dropped and counted (``foreign``); read-only requests
+  (parameters, mission list, TIMESYNC, FTP) are answered for any sender, and every sender receives the
+  telemetry (a monitoring ground station). A lockstep acknowledgement of a time not yet simulated is
+  ignored.
+* Parameters (PARAM_REQUEST_LIST / _READ, PARAM_SET) with the autopilot's names, each acting on the
+  emulator (:func:`alight.interfaces.sitl_protocol.param_table`; integers bytewise on PX4, cast on
+  ArduPilot, as AUTOPILOT_VERSION's capabilities say); the mission protocol with an empty mission
+  (MISSION_COUNT 0; an upload is refused with MAV_MISSION_UNSUPPORTED); FTP answered with NAKs (no
+  file system).
+* The telemetry ground stations wait for: GLOBAL_POSITION_INT 10 Hz (from the odometry estimate),
+  GPS_RAW_INT 5 Hz (a 3D fix at the true position), ATTITUDE 50 Hz, SYS_STATUS and BATTERY_STATUS 1 Hz
+  (no battery model: voltage and charge unknown, the motors' energy so far), HOME_POSITION 1 Hz and on
+  request, AUTOPILOT_VERSION on request; the world origin lies at PX4 SITL's default home (47.397742 N,
+  8.545594 E, 488 m), mapped on a local tangent plane. Messages go out in datagrams of up to 1400 bytes.
 * The offboard rules: OFFBOARD (or GUIDED) is refused unless setpoints have streamed for more than
   ``offboard_min_stream_s`` (1 s); in OFFBOARD, no setpoint for ``offboard_loss_s`` (PX4's
   ``COM_OF_LOSS_T``, 1 s; ArduPilot's ``GUID_TIMEOUT`` is 3 s) triggers the failsafe action
@@ -50,7 +74,8 @@ What it emulates
   with noise and drift, in LOCAL_NED, velocity in the same frame), DISTANCE_SENSOR 100 Hz (the range
   finder, downward, cm, with the sensor's span in min/max_distance; out of range, see
   :func:`distance_sensor_fields`), EXTENDED_SYS_STATE 5 Hz (on the ground before take-off, after its
-  land detector or a disarm after the flight), and answers to TIMESYNC requests.
+  land detector, or disarmed and resting on a surface after the flight, not while it falls; taking
+  off, landing, in the air otherwise), and answers to TIMESYNC requests.
 * A land detector in its LAND and PRECLAND modes (:meth:`EmulatedAutopilot._land_detector`): a descent
   commanded, no vertical motion and the range finder at the floor for 0.5 s, then it disarms. In
   OFFBOARD it leaves the decision to the companion (PX4 would idle the motors on a thrust of 0 and
@@ -96,7 +121,9 @@ import json
 import math
 import os
 import select
+import struct
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -114,6 +141,18 @@ from alight.errors import ConfigError, InputError  # noqa: E402
 from alight.evaluation.runner import world_for_scenario  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, encode_message  # noqa: E402
+from alight.interfaces.sitl_protocol import (  # noqa: E402
+    Encoding,
+    Geodetic,
+    Param,
+    decode_param_value,
+    encode_param_value,
+    finite_or,
+    ftp_reply,
+    int_or_none,
+    param_name,
+    param_table,
+)
 from alight.scenario import Scenario  # noqa: E402
 from alight.sim.quadrotor import (  # noqa: E402
     IX_F,
@@ -135,9 +174,12 @@ FRAME_SEQ_NAME = b"FRAMESEQ"
 
 # PX4 custom mode: main mode in bits 16-23, sub mode in bits 24-31 (px4_custom_mode.h).
 PX4_MAIN_MANUAL, PX4_MAIN_POSCTL, PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD = 1, 3, 4, 6
-PX4_SUB_TAKEOFF, PX4_SUB_LOITER, PX4_SUB_LAND, PX4_SUB_PRECLAND = 2, 3, 6, 9
+PX4_MAIN_ALTCTL, PX4_MAIN_STABILIZED = 2, 7
+PX4_SUB_TAKEOFF, PX4_SUB_LOITER, PX4_SUB_MISSION, PX4_SUB_RTL = 2, 3, 4, 5
+PX4_SUB_LAND, PX4_SUB_PRECLAND = 6, 9
 # ArduCopter mode numbers (COPTER_MODE).
-AP_STABILIZE, AP_GUIDED, AP_LOITER, AP_LAND, AP_POSHOLD = 0, 4, 5, 9, 16
+AP_STABILIZE, AP_ALT_HOLD, AP_AUTO, AP_GUIDED, AP_LOITER, AP_RTL, AP_LAND = 0, 2, 3, 4, 5, 6, 9
+AP_POSHOLD, AP_BRAKE = 16, 17
 
 
 def px4_custom_mode(main: int, sub: int = 0) -> int:
@@ -152,24 +194,33 @@ class FlightMode(enum.StrEnum):
     TAKEOFF = "takeoff"
     LAND = "land"
     PRECLAND = "precland"
+    RTL = "rtl"
 
 
 _PX4_MODES: dict[tuple[int, int], FlightMode] = {
     (PX4_MAIN_MANUAL, 0): FlightMode.HOLD,
+    (PX4_MAIN_ALTCTL, 0): FlightMode.HOLD,
     (PX4_MAIN_POSCTL, 0): FlightMode.HOLD,
+    (PX4_MAIN_STABILIZED, 0): FlightMode.HOLD,
     (PX4_MAIN_OFFBOARD, 0): FlightMode.OFFBOARD,
     (PX4_MAIN_AUTO, PX4_SUB_TAKEOFF): FlightMode.TAKEOFF,
     (PX4_MAIN_AUTO, PX4_SUB_LOITER): FlightMode.HOLD,
     (PX4_MAIN_AUTO, PX4_SUB_LAND): FlightMode.LAND,
     (PX4_MAIN_AUTO, PX4_SUB_PRECLAND): FlightMode.PRECLAND,
+    (PX4_MAIN_AUTO, PX4_SUB_RTL): FlightMode.RTL,
 }
 _AP_MODES: dict[int, FlightMode] = {
     AP_STABILIZE: FlightMode.HOLD,
+    AP_ALT_HOLD: FlightMode.HOLD,
     AP_LOITER: FlightMode.HOLD,
     AP_POSHOLD: FlightMode.HOLD,
+    AP_BRAKE: FlightMode.HOLD,
     AP_GUIDED: FlightMode.OFFBOARD,
     AP_LAND: FlightMode.PRECLAND,
+    AP_RTL: FlightMode.RTL,
 }
+# Modes that fly a mission: refused, as by an autopilot without one (the emulator has no mission).
+_PX4_MISSION_MODE, _AP_MISSION_MODE = px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB_MISSION), AP_AUTO
 
 
 def encode_mode(flavour: str, mode: FlightMode) -> int:
@@ -181,9 +232,11 @@ def encode_mode(flavour: str, mode: FlightMode) -> int:
             FlightMode.TAKEOFF: AP_GUIDED,
             FlightMode.LAND: AP_LAND,
             FlightMode.PRECLAND: AP_LAND,
+            FlightMode.RTL: AP_RTL,
         }[mode]
     main, sub = {
-        FlightMode.HOLD: (PX4_MAIN_POSCTL, 0),
+        FlightMode.HOLD: (PX4_MAIN_AUTO, PX4_SUB_LOITER),  # "Hold" (a commanded POSCTL is reported as such)
+        FlightMode.RTL: (PX4_MAIN_AUTO, PX4_SUB_RTL),
         FlightMode.OFFBOARD: (PX4_MAIN_OFFBOARD, 0),
         FlightMode.TAKEOFF: (PX4_MAIN_AUTO, PX4_SUB_TAKEOFF),
         FlightMode.LAND: (PX4_MAIN_AUTO, PX4_SUB_LAND),
@@ -245,6 +298,9 @@ class SitlConfig:
     """Fault injection: no camera frame is sent after this simulated time."""
     sysid: int = 1
     compid: int = 1
+    linger_s: float = 0.15
+    """Wall time the endpoint stays up after the mission ends (heartbeats with the final state, answers
+    to requests), so a client sees the disarm and the landed state before the link goes quiet."""
 
     @property
     def loss_s(self) -> float:
@@ -333,6 +389,42 @@ def position_control(
     return thrust, w_cmd
 
 
+class Outbox:
+    """The emulator's outgoing messages, sent in datagrams of up to ``max_bytes`` to every client: a 200 Hz
+    IMU plus the other streams, one datagram per message, came to thousands of datagrams per second at 8x
+    real time, more than a Python ground station (MAVProxy) reads before its socket buffer overflows and
+    drops replies. MAVLink parsers take several messages per datagram."""
+
+    def __init__(self, conn: Any, max_bytes: int = 1400) -> None:
+        self.conn = conn
+        self.max_bytes = max_bytes
+        self.buf = bytearray()
+
+    def write(self, data: bytes) -> None:
+        if len(self.buf) + len(data) > self.max_bytes:
+            self.flush()
+        self.buf += data
+
+    def flush(self) -> None:
+        if not self.buf:
+            return
+        for addr in list(self.conn.clients):
+            try:
+                self.conn.port.sendto(self.buf, addr)
+            except OSError:  # a client gone away (ICMP unreachable) or a full buffer: the datagram is lost
+                pass
+        self.buf.clear()
+
+
+def euler_of_mavlink_q(q: FloatArray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw (rad, ZYX, NED/FRD: ATTITUDE's angles) of a MAVLink quaternion (w, x, y, z)."""
+    w, x, y, z = (float(c) for c in q)
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
 class EmulatedAutopilot:
     """The MAVLink endpoint and the autopilot's logic around a :class:`~alight.sim.world.World`."""
 
@@ -347,6 +439,7 @@ class EmulatedAutopilot:
             # likewise: the emulator does not send OPTICAL_FLOW_RAD
             raise ConfigError("optical_flow: not available through alight sitl (no MAVLink stream)")
         self.config = config
+        self._px4 = config.flavour == "px4"
         self.world = world_for_scenario(scenario, airframe)
         self.airframe = self.world.airframe
         try:
@@ -359,6 +452,8 @@ class EmulatedAutopilot:
         except OSError as err:
             raise InputError(f"sitl: cannot listen on udp {config.host}:{config.port} ({err})") from None
         self.mav = self.conn.mav
+        self.outbox = Outbox(self.conn)
+        self.mav.file = self.outbox  # pymavlink's MAVLink.send writes each packed message to its file
         cam_port = config.port + 1 if config.camera_port is None else config.camera_port
         # Also the side channel for the verdict and the truth log, so it exists without a camera too.
         self.frames = FrameServer(config.host, cam_port)
@@ -372,10 +467,23 @@ class EmulatedAutopilot:
         self.hold_p = self.world.x[SL_P].copy()
         self.hold_yaw = 0.0
         self.takeoff_z: float | None = None  # set by MAV_CMD_NAV_TAKEOFF; None: the default height
-        self.takeoff_height_m = config.takeoff_height_m
         self.target: dict[str, Any] | None = None  # alpha-beta state of the landing target
         self.peer_seen = False
-        self._px4 = config.flavour == "px4"
+        self._ack_to = (0, 0)  # the sender of the command being answered
+        self._after_ack: Callable[[EmulatedAutopilot], None] | None = None  # a reply due after the ACK
+        self.peer: tuple[Any, int, int] | None = None  # (address, sysid, compid) of the accepted companion
+        self.foreign = 0  # messages refused because they did not come from the peer
+        self.parse_errors = 0
+        self._parsers: dict[Any, Any] = {}  # one MAVLink parser per sender address
+        self.custom_mode = encode_mode(config.flavour, FlightMode.HOLD)  # as the HEARTBEAT reports it
+        self.geo = Geodetic()
+        self.home_p = self.world.x[SL_P].copy()  # home: where the vehicle starts (W, m)
+        self.params = {prm.name: prm for prm in param_table(config.flavour)}
+        self._init_params()
+        self._rtl_landing = False
+        self._goto_keep = False  # ArduPilot: the GUIDED target is a goto, kept without a stream
+        self._p_est_ned = frames.enu_to_ned(self.world.x[SL_P])  # the latest odometry estimate sent
+        self._v_est_ned = np.zeros(3)
         self._guided_stopped = False
         self.peer_lockstep = False
         self.ack_t = -1.0
@@ -402,21 +510,28 @@ class EmulatedAutopilot:
         self.mav.statustext_send(severity, text.encode()[:50])
 
     def _ack(self, command: int, result: int) -> None:
-        self.mav.command_ack_send(command, result)
+        to_sys, to_comp = self._ack_to
+        self.mav.command_ack_send(int(command) & 0xFFFF, result, 0, 0, to_sys, to_comp)
 
-    def _set_mode(self, mode: FlightMode, why: str) -> None:
+    def _set_mode(self, mode: FlightMode, why: str, custom_mode: int | None = None) -> None:
+        """Switch to ``mode``, reported in the HEARTBEAT as ``custom_mode`` (the one commanded; None: the
+        flavour's name of ``mode``: PX4's hold is AUTO.LOITER, ArduCopter's LOITER)."""
+        self.custom_mode = encode_mode(self.config.flavour, mode) if custom_mode is None else custom_mode
         if mode is self.mode:
             return
         p = self.world.x[SL_P]
         self.mode = mode
+        self._goto_keep = False
         if mode is FlightMode.TAKEOFF:
             self.takeoff_z = None
+        if mode is FlightMode.RTL:
+            self._rtl_landing = False
         if mode is FlightMode.HOLD:
             self.hold_p = p.copy()
             self.hold_p[2] = max(p[2], self.airframe.gear_height)
-        if mode in (FlightMode.HOLD, FlightMode.LAND, FlightMode.PRECLAND, FlightMode.TAKEOFF):
-            self.hold_yaw = yaw_of(quat_to_rotmat(self.world.x[SL_Q]))
+        if mode is not FlightMode.HOLD:
             self.hold_p = p.copy()
+        self.hold_yaw = yaw_of(quat_to_rotmat(self.world.x[SL_Q]))
         # a failsafe's land ends wherever the vehicle is: touching the ground is its safe end (aborted)
         # a failsafe's land: touching the ground is its safe end, and a safe settling scores aborted
         self.world.ground_ok = self.world.aborting = mode is FlightMode.LAND and why == "offboard loss"
@@ -425,9 +540,53 @@ class EmulatedAutopilot:
     @property
     def landed(self) -> bool:
         """What the emulated autopilot believes (EXTENDED_SYS_STATE): on the ground before take-off,
-        after its land detector said landed, or disarmed after a flight; in the air otherwise."""
+        after its land detector said landed, or disarmed after a flight and standing on a surface (not
+        while it falls after a disarm in the air); in the air otherwise."""
         w = self.world
-        return not w.airborne or self._land_detected or (not self.armed and w.t_motors_off is not None)
+        if not w.airborne or self._land_detected:
+            return True
+        resting = w.touching and float(np.linalg.norm(w.x[SL_V])) < 0.3
+        return not self.armed and w.t_motors_off is not None and resting
+
+    def _landed_state(self) -> int:
+        """EXTENDED_SYS_STATE ``landed_state``: on the ground, taking off, landing, or in the air."""
+        if self.landed:
+            return int(mavlink.MAV_LANDED_STATE_ON_GROUND)
+        if self.armed and self.mode is FlightMode.TAKEOFF:
+            return int(mavlink.MAV_LANDED_STATE_TAKEOFF)
+        if self.armed and self._descending:
+            return int(mavlink.MAV_LANDED_STATE_LANDING)
+        return int(mavlink.MAV_LANDED_STATE_IN_AIR)
+
+    # -- parameters: the PARAM_* table acts on these ----------------------------------------------------
+    def _init_params(self) -> None:
+        cfg, prm = self.config, self.params
+        if self._px4:
+            prm["COM_OF_LOSS_T"].value = cfg.loss_s
+            prm["COM_OBL_RC_ACT"].value = 4.0 if cfg.failsafe == "land" else 0.0
+            prm["MIS_TAKEOFF_ALT"].value = cfg.takeoff_height_m
+            prm["MPC_LAND_SPEED"].value = cfg.land_descent_mps
+            prm["MPC_LAND_SPEED"].lo = 0.1  # the emulator's own default (0.5 m/s) is below PX4's span
+        else:
+            prm["GUID_TIMEOUT"].value = cfg.loss_s
+            prm["LAND_SPEED"].value = float(round(cfg.land_descent_mps * 100.0))
+
+    def _loss_s(self) -> float:
+        return self.params["COM_OF_LOSS_T" if self._px4 else "GUID_TIMEOUT"].value
+
+    def _failsafe(self) -> str:
+        if self._px4:
+            return "land" if self.params["COM_OBL_RC_ACT"].value == 4.0 else "hold"
+        return self.config.failsafe
+
+    def _takeoff_height_m(self) -> float:
+        return self.params["MIS_TAKEOFF_ALT"].value if self._px4 else self.config.takeoff_height_m
+
+    def _land_speed_mps(self) -> float:
+        return self.params["MPC_LAND_SPEED"].value if self._px4 else self.params["LAND_SPEED"].value / 100
+
+    def _rtl_height_m(self) -> float:
+        return self.params["RTL_RETURN_ALT"].value if self._px4 else self.params["RTL_ALT"].value / 100
 
     def _disarm(self, why: str) -> None:
         """Disarm: the motors stop at the next physics batch (the world judges the settling from then)."""
@@ -446,7 +605,7 @@ class EmulatedAutopilot:
         zone: ``-inf``). Then it disarms at once (PX4 idles the motors ``COM_DISARM_LAND`` first; the
         emulator does not)."""
         cfg = self.config
-        landing = self.mode in (FlightMode.LAND, FlightMode.PRECLAND)
+        landing = self.mode in (FlightMode.LAND, FlightMode.PRECLAND, FlightMode.RTL)
         if not (self.armed and self.world.airborne and landing):
             self._land_since = None
             return
@@ -465,35 +624,87 @@ class EmulatedAutopilot:
             self._disarm("land detector")
 
     def _stream_alive(self, t: float) -> bool:
-        return self.setpoint is not None and t - self.setpoint.t <= self.config.loss_s
+        return self.setpoint is not None and t - self.setpoint.t <= self._loss_s()
 
-    def handle(self, msg: Any) -> None:
+    # -- receiving: one parser per sender, and only the peer commands ----------------------------------
+    def receive(self, data: bytes, addr: Any = None) -> None:
+        """Parse one datagram from ``addr`` and handle its messages. Each sender has its own parser, so a
+        truncated frame from one cannot swallow another's; whatever fails to parse is counted."""
+        parser = self._parsers.get(addr)
+        if parser is None:
+            if len(self._parsers) >= 64:  # a flood of senders: forget the oldest parser
+                self._parsers.pop(next(iter(self._parsers)))
+            parser = self._parsers[addr] = mavlink.MAVLink(None, self.config.sysid, self.config.compid)
+            parser.robust_parsing = True
+        try:
+            msgs = parser.parse_buffer(data) or []
+        except Exception:  # noqa: BLE001 - any parser failure on foreign bytes is a bad datagram, not an exit
+            self.parse_errors += 1
+            parser.buf, parser.buf_index = bytearray(), 0
+            return
+        for msg in msgs:
+            self.handle(msg, addr)
+
+    def handle(self, msg: Any, addr: Any = None) -> None:
+        """One decoded message from ``addr``. The first HEARTBEAT from another system makes its sender the
+        peer; from then on only the peer's commands, setpoints, heartbeats and lockstep acknowledgements
+        act, while read-only requests (parameters, mission list, TIMESYNC) are answered for anyone."""
         kind = msg.get_type()
-        t = self.world.t
-        if kind == "HEARTBEAT":
-            if not self.peer_seen:
-                self._event("peer", sysid=msg.get_srcSystem())
+        if kind == "BAD_DATA":
+            self.parse_errors += 1
+            return
+        src = (addr, msg.get_srcSystem(), msg.get_srcComponent())
+        if src[1:] == (self.config.sysid, self.config.compid):
+            self.foreign += 1  # our own ids: an echo or a spoof
+            return
+        if self.peer is None and kind == "HEARTBEAT":
+            self.peer = src
             self.peer_seen = True
-        elif kind == "NAMED_VALUE_INT":
-            name = msg.name.encode() if isinstance(msg.name, str) else bytes(msg.name)
-            if name.rstrip(b"\0") == LOCKSTEP_ACK_NAME:
+            self._event("peer", sysid=src[1], compid=src[2])
+        try:
+            if kind in _PUBLIC_HANDLERS:
+                _PUBLIC_HANDLERS[kind](self, msg)
+            elif src != self.peer:
+                self.foreign += 1
+            elif kind in _PEER_HANDLERS:
+                _PEER_HANDLERS[kind](self, msg)
+        except (ValueError, TypeError, OverflowError, struct.error) as err:
+            # a field no check above anticipated: drop the message, never the mission
+            self.parse_errors += 1
+            self._event("bad_message", message=kind, error=f"{type(err).__name__}: {str(err)[:60]}")
+
+    def _on_named_value_int(self, msg: Any) -> None:
+        raw = msg.name
+        name = raw.encode("latin-1", "replace") if isinstance(raw, str) else bytes(raw)
+        if name.rstrip(b"\0") == LOCKSTEP_ACK_NAME:
+            t_ack = finite_or(msg.time_boot_ms, -1.0) * 1e-3
+            # an acknowledgement of a time not yet simulated is not one: it cannot run the world ahead
+            if t_ack <= self.world.t + 1e-6:
                 self.peer_lockstep = True
-                self.ack_t = max(self.ack_t, msg.time_boot_ms * 1e-3)
-        elif kind == "COMMAND_LONG":
-            self._command(msg)
-        elif kind == "SET_ATTITUDE_TARGET":
-            self._attitude_target(msg, t)
-        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
-            self._position_target(msg, t)
-        elif kind == "LANDING_TARGET":
-            self._landing_target(msg, t)
-        elif kind == "TIMESYNC" and msg.tc1 == 0:
-            self.mav.timesync_send(int(t * 1e9), msg.ts1)
+                self.ack_t = max(self.ack_t, t_ack)
+
+    def _on_timesync(self, msg: Any) -> None:
+        if msg.tc1 == 0:
+            self.mav.timesync_send(int(self.world.t * 1e9), msg.ts1)
+
+    def _addressed_to_me(self, msg: Any) -> bool:
+        return msg.target_system in (0, self.config.sysid) and msg.target_component in (0, self.config.compid)
+
+    def _on_command_long(self, msg: Any) -> None:
+        if self._addressed_to_me(msg):
+            params = [msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7]
+            self._command(msg.command, params, msg, global_e7=False)
+
+    def _on_command_int(self, msg: Any) -> None:
+        if self._addressed_to_me(msg):
+            params = [msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z]
+            self._command(msg.command, params, msg, global_e7=True, frame=int(msg.frame))
 
     def _note_setpoint(self, sp: Setpoint) -> None:
         if self.setpoint is None or sp.t - self.setpoint.t > 0.5:
             self.stream_start = sp.t  # a new stream (PX4 wants a continuous one before the switch)
         self.setpoint = sp
+        self._goto_keep = False
         self.setpoint_times.append((sp.t, sp.kind))
 
     def _attitude_target(self, msg: Any, t: float) -> None:
@@ -550,62 +761,228 @@ class EmulatedAutopilot:
         tg["v"] = tg["v"] + 0.2 * r / dt
         tg["t"], tg["z"] = t, float(p_W[2])
 
-    def _command(self, msg: Any) -> None:
-        cmd, t = msg.command, self.world.t
-        if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-            if msg.param1 == 1.0:
-                if self.world.t_motors_off is not None or self.world.done:  # one flight per mission
-                    self._ack(cmd, mavlink.MAV_RESULT_DENIED)
-                    return
-                if self.mode is FlightMode.OFFBOARD and self._px4 and not self._stream_alive(t):
-                    self._ack(cmd, mavlink.MAV_RESULT_DENIED)
-                    return
-                self.armed = True
-                self.hold_p = self.world.x[SL_P].copy()
-                self._event("armed")
-            elif msg.param1 == 0.0:
-                # PX4 refuses a disarm unless its land detector says landed, or the disarm is forced
-                on_ground = not self.world.airborne or self.landed
-                if not on_ground and int(msg.param2) != FORCE_DISARM:
-                    self._ack(cmd, mavlink.MAV_RESULT_DENIED)
-                    return
-                self._disarm("forced" if int(msg.param2) == FORCE_DISARM else "commanded")
-            else:
-                self._ack(cmd, mavlink.MAV_RESULT_DENIED)
-                return
-            self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
-        elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
-            if not (int(msg.param1) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
-                self._ack(cmd, mavlink.MAV_RESULT_DENIED)
-                return
-            if self.config.flavour == "ardupilot":
-                cm = int(msg.param2) if math.isfinite(msg.param2) else -1
-            else:
-                main = int(msg.param2) if math.isfinite(msg.param2) else -1
-                sub = int(msg.param3) if math.isfinite(msg.param3) else 0
-                cm = px4_custom_mode(main & 0xFF, sub & 0xFF) if main >= 0 else -1
-            mode = decode_mode(self.config.flavour, cm) if cm >= 0 else None
-            if mode is None:
-                self._ack(cmd, mavlink.MAV_RESULT_UNSUPPORTED)
-                return
-            if mode is FlightMode.OFFBOARD and self.config.flavour == "px4":
-                streaming = self._stream_alive(t) and self.stream_start is not None
-                if not streaming or t - (self.stream_start or t) < self.config.offboard_min_stream_s:
-                    self._ack(cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
-                    self._statustext("REJECT OFFBOARD: no setpoint stream", mavlink.MAV_SEVERITY_WARNING)
-                    return
-            self._set_mode(mode, "commanded")
-            self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
-        elif cmd == mavlink.MAV_CMD_NAV_TAKEOFF:
-            height = msg.param7 if math.isfinite(msg.param7) and 0.5 <= msg.param7 <= 50.0 else 2.5
-            if not self.armed:
-                self._ack(cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
-                return
-            self._set_mode(FlightMode.TAKEOFF, "takeoff command")
-            self.takeoff_z = self.hold_p[2] + height
-            self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
-        else:
+    def _command(
+        self, cmd: int, params: list[Any], msg: Any, *, global_e7: bool, frame: int | None = None
+    ) -> None:
+        """A COMMAND_LONG or COMMAND_INT (``global_e7``: params 5 and 6 are degE7 integers), every field
+        read defensively (unused ones are NaN from MAVSDK); every command gets a COMMAND_ACK."""
+        self._ack_to = (msg.get_srcSystem(), msg.get_srcComponent())
+        handler = _COMMANDS.get(int(cmd))
+        if handler is None:
             self._ack(cmd, mavlink.MAV_RESULT_UNSUPPORTED)
+            return
+        p = [finite_or(v, math.nan) for v in params]
+        if global_e7:  # lat/lon as degE7 integers: degrees, the same as COMMAND_LONG carries
+            p[4], p[5] = p[4] * 1e-7, p[5] * 1e-7
+        self._ack(cmd, handler(self, p, frame))
+        then, self._after_ack = self._after_ack, None
+        if then is not None:  # a requested message follows its ACK, as the command protocol has it
+            then(self)
+
+    def _cmd_arm_disarm(self, p: list[float], frame: int | None) -> int:
+        t = self.world.t
+        force = int_or_none(p[1]) == FORCE_DISARM
+        if p[0] == 1.0:
+            if self.armed:
+                return int(mavlink.MAV_RESULT_ACCEPTED)
+            if self.world.t_motors_off is not None or self.world.done:  # one flight per mission
+                return int(mavlink.MAV_RESULT_DENIED)
+            if self.mode is FlightMode.OFFBOARD and self._px4 and not self._stream_alive(t):
+                return int(mavlink.MAV_RESULT_DENIED)
+            if self.mode is FlightMode.RTL or self.mode in (FlightMode.LAND, FlightMode.PRECLAND):
+                return int(mavlink.MAV_RESULT_DENIED)  # (PX4 and ArduCopter refuse to arm in these)
+            self.armed = True
+            self.hold_p = self.world.x[SL_P].copy()
+            self._event("armed")
+            return int(mavlink.MAV_RESULT_ACCEPTED)
+        if p[0] == 0.0:
+            # PX4 refuses a disarm unless its land detector says landed, or the disarm is forced
+            on_ground = not self.world.airborne or self.landed
+            if self.armed and not on_ground and not force:
+                return int(mavlink.MAV_RESULT_DENIED)
+            self._disarm("forced" if force else "commanded")
+            return int(mavlink.MAV_RESULT_ACCEPTED)
+        return int(mavlink.MAV_RESULT_DENIED)
+
+    def _requested_mode(self, p: list[float]) -> int | None:
+        """The custom mode a MAV_CMD_DO_SET_MODE asks for (None: not a custom mode, or unreadable)."""
+        base = int_or_none(p[0], 0, 255)
+        if base is None or not base & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return None
+        if not self._px4:
+            return int_or_none(p[1], 0, 2**32 - 1)
+        main, sub = int_or_none(p[1], 0, 255), int_or_none(p[2], 0, 255)
+        if main is None:
+            return None
+        return px4_custom_mode(main, sub if main == PX4_MAIN_AUTO and sub is not None else 0)
+
+    def _cmd_set_mode(self, p: list[float], frame: int | None) -> int:
+        t = self.world.t
+        cm = self._requested_mode(p)
+        if cm is None:
+            return int(mavlink.MAV_RESULT_DENIED)
+        refused = mavlink.MAV_RESULT_DENIED if self._px4 else mavlink.MAV_RESULT_FAILED
+        if cm == (_PX4_MISSION_MODE if self._px4 else _AP_MISSION_MODE):
+            self._statustext("No mission available", mavlink.MAV_SEVERITY_WARNING)
+            return int(refused)
+        mode = decode_mode(self.config.flavour, cm)
+        if mode is None:
+            return int(mavlink.MAV_RESULT_UNSUPPORTED)
+        if mode is FlightMode.OFFBOARD and self._px4:
+            streaming = self._stream_alive(t) and self.stream_start is not None
+            if not streaming or t - (self.stream_start or t) < self.config.offboard_min_stream_s:
+                self._statustext("REJECT OFFBOARD: no setpoint stream", mavlink.MAV_SEVERITY_WARNING)
+                return int(mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
+        self._set_mode(mode, "commanded", custom_mode=cm)
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_takeoff(self, p: list[float], frame: int | None) -> int:
+        """MAV_CMD_NAV_TAKEOFF: PX4 reads param7 as the altitude AMSL (NaN: MIS_TAKEOFF_ALT above the
+        take-off point) and takes off in AUTO.TAKEOFF; ArduCopter reads it as the height above home and
+        takes off only in GUIDED."""
+        if not self.armed:
+            return int(mavlink.MAV_RESULT_TEMPORARILY_REJECTED if self._px4 else mavlink.MAV_RESULT_FAILED)
+        if not self._px4 and self.mode is not FlightMode.OFFBOARD:
+            return int(mavlink.MAV_RESULT_FAILED)
+        z_now = float(self.world.x[SL_P][2])
+        if not math.isfinite(p[6]):
+            z_goal = z_now + self._takeoff_height_m()
+        else:  # PX4: AMSL; ArduCopter: above home
+            z_goal = p[6] - self.geo.alt0_m if self._px4 else float(self.home_p[2]) + p[6]
+        if not 0.5 <= z_goal - z_now <= 80.0:
+            return int(mavlink.MAV_RESULT_DENIED)
+        self._set_mode(FlightMode.TAKEOFF, "takeoff command")
+        self.takeoff_z = z_goal
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_land(self, p: list[float], frame: int | None) -> int:
+        self._set_mode(FlightMode.LAND if self._px4 else FlightMode.PRECLAND, "land command")
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_rtl(self, p: list[float], frame: int | None) -> int:
+        self._set_mode(FlightMode.RTL, "return command")
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_reposition(self, p: list[float], frame: int | None) -> int:
+        """MAV_CMD_DO_REPOSITION (MAVSDK's goto): fly to param5/6 (lat/lon) at param7, AMSL or above home
+        by the frame (NaN keeps the current value); PX4 then holds there (AUTO.LOITER), ArduCopter flies
+        it in GUIDED."""
+        if not (self.armed and self.world.airborne):
+            return int(mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
+        x = self.world.x[SL_P]
+        east, north = (float(x[0]), float(x[1]))
+        if math.isfinite(p[4]) and math.isfinite(p[5]):
+            if not (-90.0 <= p[4] <= 90.0 and -180.0 <= p[5] <= 180.0):
+                return int(mavlink.MAV_RESULT_DENIED)
+            east, north = self.geo.to_east_north(p[4], p[5])
+        up = float(x[2])
+        if math.isfinite(p[6]):
+            relative = frame in (
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            )
+            up = p[6] if relative else p[6] - self.geo.alt0_m
+        goal = np.array([east, north, up])
+        if np.linalg.norm(goal - x) > 1000.0 or up < 0.0:
+            return int(mavlink.MAV_RESULT_DENIED)
+        if self._px4:
+            self._set_mode(FlightMode.HOLD, "reposition")
+            self.hold_p = goal
+        else:
+            self._set_mode(FlightMode.OFFBOARD, "reposition")
+            self.setpoint = Setpoint(self.world.t, "target", p=goal)
+            self._goto_keep = True
+        if math.isfinite(p[3]):
+            self.hold_yaw = frames.yaw_enu_to_ned(math.radians(p[3]))  # (the map is its own inverse)
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_request_message(self, p: list[float], frame: int | None) -> int:
+        msg_id = int_or_none(p[0], 0, 2**24)
+        sender = _ON_REQUEST.get(msg_id) if msg_id is not None else None
+        if sender is None:
+            return int(mavlink.MAV_RESULT_UNSUPPORTED)
+        self._after_ack = sender
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_message_interval(self, p: list[float], frame: int | None) -> int:
+        """MAV_CMD_SET_MESSAGE_INTERVAL: accepted for the messages the emulator streams, at its own fixed
+        rates (the module docstring lists them); refused for any other."""
+        msg_id = int_or_none(p[0], 0, 2**24)
+        return int(mavlink.MAV_RESULT_ACCEPTED if msg_id in _STREAMED else mavlink.MAV_RESULT_UNSUPPORTED)
+
+    def _cmd_autopilot_capabilities(self, p: list[float], frame: int | None) -> int:
+        self._after_ack = EmulatedAutopilot._send_autopilot_version
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    def _cmd_home_position(self, p: list[float], frame: int | None) -> int:
+        self._after_ack = EmulatedAutopilot._send_home_position
+        return int(mavlink.MAV_RESULT_ACCEPTED)
+
+    # -- parameters, mission, FTP: what a ground station asks on connecting -------------------------
+    def _encoding(self) -> Encoding:
+        return "bytewise" if self._px4 else "cast"
+
+    def _send_param(self, prm: Param) -> None:
+        index, count = list(self.params).index(prm.name), len(self.params)
+        value = encode_param_value(prm, self._encoding())
+        self.mav.param_value_send(prm.name.encode(), value, prm.mav_type, count, index)
+
+    def _on_param_request_list(self, msg: Any) -> None:
+        if self._addressed_to_me(msg):
+            for prm in self.params.values():
+                self._send_param(prm)
+
+    def _on_param_request_read(self, msg: Any) -> None:
+        if not self._addressed_to_me(msg):
+            return
+        index = int_or_none(msg.param_index, -1, 65535)
+        if index is not None and 0 <= index < len(self.params):
+            self._send_param(list(self.params.values())[index])
+        elif (prm := self.params.get(param_name(msg.param_id))) is not None:
+            self._send_param(prm)
+
+    def _on_param_set(self, msg: Any) -> None:
+        """PARAM_SET: a known name with a value in its span is taken and echoed; otherwise the current value
+        is echoed (how autopilots refuse a value); an unknown name gets no answer, as from an autopilot."""
+        if not self._addressed_to_me(msg):
+            return
+        prm = self.params.get(param_name(msg.param_id))
+        if prm is None:
+            return
+        value = decode_param_value(float(msg.param_value), int(msg.param_type), self._encoding())
+        if prm.accepts(value):
+            prm.value = value
+            self._event("param", name=prm.name, value=value)
+        self._send_param(prm)
+
+    def _on_mission_request_list(self, msg: Any) -> None:
+        if self._addressed_to_me(msg):
+            to = (msg.get_srcSystem(), msg.get_srcComponent())
+            self.mav.mission_count_send(*to, 0, int(getattr(msg, "mission_type", 0)))
+
+    def _on_mission_request(self, msg: Any) -> None:
+        if self._addressed_to_me(msg):  # no item exists
+            to = (msg.get_srcSystem(), msg.get_srcComponent())
+            self.mav.mission_ack_send(*to, mavlink.MAV_MISSION_INVALID_SEQUENCE, int(msg.mission_type))
+
+    def _on_mission_count(self, msg: Any) -> None:
+        """A mission upload: an empty one is taken, any other refused (the emulator flies no mission)."""
+        if self._addressed_to_me(msg):
+            to = (msg.get_srcSystem(), msg.get_srcComponent())
+            result = mavlink.MAV_MISSION_ACCEPTED if msg.count == 0 else mavlink.MAV_MISSION_UNSUPPORTED
+            self.mav.mission_ack_send(*to, result, int(msg.mission_type))
+
+    def _on_mission_clear_all(self, msg: Any) -> None:
+        if self._addressed_to_me(msg):
+            to = (msg.get_srcSystem(), msg.get_srcComponent())
+            self.mav.mission_ack_send(*to, mavlink.MAV_MISSION_ACCEPTED, int(msg.mission_type))
+
+    def _on_ftp(self, msg: Any) -> None:
+        if msg.target_system not in (0, self.config.sysid):
+            return
+        reply = ftp_reply(msg.payload)
+        if reply is not None:
+            self.mav.file_transfer_protocol_send(0, msg.get_srcSystem(), msg.get_srcComponent(), reply)
 
     # -- control ---------------------------------------------------------------------------------------
     def _control(self) -> None:
@@ -615,22 +992,23 @@ class EmulatedAutopilot:
         if self.mode is FlightMode.OFFBOARD and not self._px4:
             # ArduCopter GUIDED: without setpoints (none yet, or none for GUID_TIMEOUT) the vehicle stops
             # and holds where it is, and stays in GUIDED.
-            guided_stopped = self.setpoint is None or t - self.setpoint.t > self.config.loss_s
+            guided_stopped = self.setpoint is None or (
+                t - self.setpoint.t > self._loss_s() and not self._goto_keep
+            )
             if guided_stopped and not self._guided_stopped:
                 self.hold_p = p.copy()
                 self.hold_yaw = yaw_of(R)
                 self._event("guided_timeout", last_setpoint_t=self.setpoint.t if self.setpoint else None)
             self._guided_stopped = guided_stopped
         elif self.mode is FlightMode.OFFBOARD and self.armed and not self._stream_alive(t):
-            self._statustext(f"Offboard lost: failsafe {self.config.failsafe}", mavlink.MAV_SEVERITY_WARNING)
+            failsafe = self._failsafe()
+            self._statustext(f"Offboard lost: failsafe {failsafe}", mavlink.MAV_SEVERITY_WARNING)
             self._event(
                 "failsafe",
-                action=self.config.failsafe,
+                action=failsafe,
                 last_setpoint_t=self.setpoint.t if self.setpoint else None,
             )
-            self._set_mode(
-                FlightMode.LAND if self.config.failsafe == "land" else FlightMode.HOLD, "offboard loss"
-            )
+            self._set_mode(FlightMode.LAND if failsafe == "land" else FlightMode.HOLD, "offboard loss")
         self._land_detector(t)
         self._descending = False
         if not self.armed:
@@ -650,12 +1028,26 @@ class EmulatedAutopilot:
                 p_ref, v_ref, a_ref = sp.p, sp.v, sp.a
                 yaw = self.hold_yaw if sp.yaw is None else sp.yaw
             elif self.mode is FlightMode.TAKEOFF:
-                z = self.hold_p[2] + self.takeoff_height_m if self.takeoff_z is None else self.takeoff_z
+                z = self.hold_p[2] + self._takeoff_height_m() if self.takeoff_z is None else self.takeoff_z
                 p_ref = np.array([self.hold_p[0], self.hold_p[1], z])
                 if p[2] > z - 0.1 and abs(v[2]) < 0.2:
-                    self._set_mode(FlightMode.HOLD, "takeoff done")
-            elif self.mode in (FlightMode.LAND, FlightMode.PRECLAND):
-                descent = self.config.land_descent_mps
+                    # PX4 goes on to AUTO.LOITER; ArduCopter stays in GUIDED, holding where it got to
+                    self._set_mode(FlightMode.HOLD if self._px4 else FlightMode.OFFBOARD, "takeoff done")
+                    if not self._px4:
+                        self.setpoint = Setpoint(t, "target", p=p_ref)
+                        self._goto_keep = True
+            elif self.mode is FlightMode.RTL and not self._rtl_landing:
+                z_rtl = max(float(self.hold_p[2]), float(self.home_p[2]) + self._rtl_height_m())
+                climbed = p[2] > z_rtl - 0.3
+                p_ref = np.array([self.home_p[0], self.home_p[1], z_rtl]) if climbed else self.hold_p.copy()
+                if not climbed:
+                    p_ref[2] = z_rtl  # climb first, then return
+                home_dist = math.dist(p[0:2], self.home_p[0:2])
+                if climbed and home_dist < 0.3 and float(np.linalg.norm(v)) < 0.3:
+                    self._rtl_landing = True
+                    self.hold_p = p.copy()
+            elif self.mode in (FlightMode.LAND, FlightMode.PRECLAND, FlightMode.RTL):
+                descent = self._land_speed_mps()
                 xy = self.hold_p[0:2]
                 v_xy = np.zeros(2)
                 tg = self.target
@@ -694,6 +1086,7 @@ class EmulatedAutopilot:
             q = frames.q_WB_to_mavlink(x[SL_Q])
             rates = frames.flu_to_frd(x[SL_W])
             mav.attitude_quaternion_send(t_ms, *q, *rates)
+            mav.attitude_send(t_ms, *euler_of_mavlink_q(q), *rates)
         odo = w.odometry_message() if k % 5 == 0 else None  # 40 Hz, odometry faults applied
         if odo is not None:
             p, v = frames.enu_to_ned(odo.p_WB), frames.enu_to_ned(odo.v_WB)
@@ -701,6 +1094,7 @@ class EmulatedAutopilot:
             rates = frames.flu_to_frd(x[SL_W])
             nan21 = [math.nan] * 21
             mav.local_position_ned_send(t_ms, *p, *v)
+            self._p_est_ned, self._v_est_ned = p, v
             mav.odometry_send(
                 t_us, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_NED, *p, q, *v, *rates,
                 nan21, nan21, w.faults.odometry_reset_counter, mavlink.MAV_ESTIMATOR_TYPE_VIO, 100,
@@ -710,9 +1104,86 @@ class EmulatedAutopilot:
             mav.distance_sensor_send(t_ms, lo, hi, cm, mavlink.MAV_DISTANCE_SENSOR_LASER, 0,
                                      mavlink.MAV_SENSOR_ROTATION_PITCH_270, 255, 0.0, 0.0, [0.0] * 4,
                                      quality)  # fmt: skip
+        if k % 20 == 0:  # 10 Hz
+            self._send_global_position(t_ms)
         if k % 40 == 0:  # 5 Hz
-            landed = mavlink.MAV_LANDED_STATE_ON_GROUND if self.landed else mavlink.MAV_LANDED_STATE_IN_AIR
-            mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, landed)
+            mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, self._landed_state())
+            self._send_gps(t_us)
+        if k % 200 == 100:  # 1 Hz
+            self._send_status()
+            self._send_home_position()
+
+    # -- the standard telemetry a ground station waits for ----------------------------------------------
+    def _send_global_position(self, t_ms: int) -> None:
+        """GLOBAL_POSITION_INT from the latest odometry estimate (the one LOCAL_POSITION_NED carries)."""
+        p, v = self._p_est_ned, self._v_est_ned
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(v))):
+            return
+        lat, lon = self.geo.e7(float(p[1]), float(p[0]))
+        up = -float(p[2])
+        yaw_ned = frames.yaw_enu_to_ned(yaw_of(quat_to_rotmat(self.world.x[SL_Q])))
+        hdg = int(round(math.degrees(yaw_ned) * 100.0)) % 36000
+        cm_s = [int(np.clip(round(c * 100.0), -32768, 32767)) for c in v]
+        self.mav.global_position_int_send(
+            t_ms, lat, lon, int(round((self.geo.alt0_m + up) * 1e3)),
+            int(round((up - float(self.home_p[2])) * 1e3)), *cm_s, hdg,
+        )  # fmt: skip
+
+    def _send_gps(self, t_us: int) -> None:
+        """GPS_RAW_INT: a 3D fix at the true position (the emulator has no GNSS error model)."""
+        x = self.world.x
+        lat, lon = self.geo.e7(float(x[0]), float(x[1]))
+        v = x[SL_V]
+        speed = float(np.hypot(v[0], v[1]))
+        cog = int(round(math.degrees(math.atan2(v[0], v[1])) * 100.0)) % 36000 if speed > 0.2 else 65535
+        self.mav.gps_raw_int_send(
+            t_us, mavlink.GPS_FIX_TYPE_3D_FIX, lat, lon, int(round((self.geo.alt0_m + float(x[2])) * 1e3)),
+            80, 120, int(round(speed * 100.0)), cog, 12,
+        )  # fmt: skip
+
+    def _send_status(self) -> None:
+        """SYS_STATUS (sensors present, enabled and healthy, the pre-arm check passed) and BATTERY_STATUS
+        (no battery is modelled: voltage, current and charge unknown; energy drawn by the motors so far)."""
+        sensors = (
+            mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+            | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+            | mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_LASER_POSITION
+            | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_PREARM_CHECK
+        )  # fmt: skip
+        self.mav.sys_status_send(sensors, sensors, sensors, 0, 65535, -1, -1, 0, 0, 0, 0, 0, 0)
+        t = np.array(self.motor_t)
+        energy_hJ = flight_energy_J(t, np.array(self.motor_N)) / 100.0 if t.size > 1 else 0.0
+        self.mav.battery_status_send(
+            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 32767, [65535] * 10, -1, -1,
+            int(min(energy_hJ, 2**31 - 1)), -1,
+        )  # fmt: skip
+
+    def _send_home_position(self) -> None:
+        h = self.home_p
+        lat, lon = self.geo.e7(float(h[0]), float(h[1]))
+        self.mav.home_position_send(
+            lat, lon, int(round((self.geo.alt0_m + float(h[2])) * 1e3)), *frames.enu_to_ned(h),
+            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(round(self.world.t * 1e6)),
+        )  # fmt: skip
+
+    def _send_autopilot_version(self) -> None:
+        caps = (
+            mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+            | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+            | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+            | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+        )  # fmt: skip
+        caps |= (
+            mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+            if self._px4
+            else mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
+        )
+        parts = (alight.__version__.split(".") + ["0", "0"])[:3]
+        major, minor, patch = (int(n) if n.isdigit() else 0 for n in parts)
+        version = major << 24 | minor << 16 | patch << 8 | mavlink.FIRMWARE_VERSION_TYPE_DEV
+        self.mav.autopilot_version_send(
+            caps, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.config.sysid,
+        )  # fmt: skip
 
     def _heartbeat(self) -> None:
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
@@ -724,9 +1195,7 @@ class EmulatedAutopilot:
             else mavlink.MAV_AUTOPILOT_PX4
         )
         status = mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY
-        self.mav.heartbeat_send(
-            mavlink.MAV_TYPE_QUADROTOR, ap, base, encode_mode(self.config.flavour, self.mode), status
-        )
+        self.mav.heartbeat_send(mavlink.MAV_TYPE_QUADROTOR, ap, base, self.custom_mode, status)
         if self.config.lockstep:
             self.mav.named_value_int_send(int(self.world.t * 1e3), LOCKSTEP_NAME, 1)
         self._last_hb_wall = time.monotonic()
@@ -773,15 +1242,16 @@ class EmulatedAutopilot:
         deadline = time.monotonic() + timeout_s
         self.frames.accept()  # the camera client receives the scenario at once
         while True:
+            self.outbox.flush()
             while True:
                 try:
-                    msg = self.conn.recv_msg()
-                except (OSError, mavlink.MAVError):
-                    msg = None
-                if msg is None:
+                    data, addr = sock.recvfrom(65535)
+                except OSError:  # nothing queued (or an ICMP error from a client gone away)
                     break
-                if msg.get_type() != "BAD_DATA":
-                    self.handle(msg)
+                self.conn.clients.add(addr)  # every sender receives the telemetry (a ground station too)
+                self.conn.clients_last_alive[addr] = time.time()
+                self.receive(data, addr)
+            self.outbox.flush()  # the answers
             if until_acked and self._wait_satisfied():
                 return
             remaining = deadline - time.monotonic()
@@ -858,7 +1328,9 @@ class EmulatedAutopilot:
                 ahead = w.t / speed - (time.monotonic() - wall_start)
                 if ahead > 0:
                     self._poll(ahead)
-        return self._finish(time.monotonic() - wall_start)
+        result = self._finish(time.monotonic() - wall_start)
+        self.outbox.flush()
+        return result
 
     def _finish(self, wall_s: float) -> dict[str, Any]:
         w = self.world
@@ -885,8 +1357,67 @@ class EmulatedAutopilot:
         return {k: np.array(v, dtype=float) for k, v in self.log.items()}
 
     def close(self) -> None:
+        self.outbox.flush()
         self.frames.close()
         self.conn.close()
+
+
+_Handler = Callable[[EmulatedAutopilot, Any], None]
+_PUBLIC_HANDLERS: dict[str, _Handler] = {  # read-only: answered for any sender
+    "TIMESYNC": EmulatedAutopilot._on_timesync,
+    "PARAM_REQUEST_LIST": EmulatedAutopilot._on_param_request_list,
+    "PARAM_REQUEST_READ": EmulatedAutopilot._on_param_request_read,
+    "MISSION_REQUEST_LIST": EmulatedAutopilot._on_mission_request_list,
+    "MISSION_REQUEST_INT": EmulatedAutopilot._on_mission_request,
+    "MISSION_REQUEST": EmulatedAutopilot._on_mission_request,
+    "FILE_TRANSFER_PROTOCOL": EmulatedAutopilot._on_ftp,
+}
+_PEER_HANDLERS: dict[str, _Handler] = {  # act on the flight: the peer's only
+    "HEARTBEAT": lambda ap, msg: None,
+    "NAMED_VALUE_INT": EmulatedAutopilot._on_named_value_int,
+    "COMMAND_LONG": EmulatedAutopilot._on_command_long,
+    "COMMAND_INT": EmulatedAutopilot._on_command_int,
+    "SET_ATTITUDE_TARGET": lambda ap, msg: ap._attitude_target(msg, ap.world.t),
+    "SET_POSITION_TARGET_LOCAL_NED": lambda ap, msg: ap._position_target(msg, ap.world.t),
+    "LANDING_TARGET": lambda ap, msg: ap._landing_target(msg, ap.world.t),
+    "PARAM_SET": EmulatedAutopilot._on_param_set,
+    "MISSION_COUNT": EmulatedAutopilot._on_mission_count,
+    "MISSION_CLEAR_ALL": EmulatedAutopilot._on_mission_clear_all,
+}
+_Command = Callable[[EmulatedAutopilot, list[float], int | None], int]
+_COMMANDS: dict[int, _Command] = {
+    mavlink.MAV_CMD_COMPONENT_ARM_DISARM: EmulatedAutopilot._cmd_arm_disarm,
+    mavlink.MAV_CMD_DO_SET_MODE: EmulatedAutopilot._cmd_set_mode,
+    mavlink.MAV_CMD_NAV_TAKEOFF: EmulatedAutopilot._cmd_takeoff,
+    mavlink.MAV_CMD_NAV_LAND: EmulatedAutopilot._cmd_land,
+    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: EmulatedAutopilot._cmd_rtl,
+    mavlink.MAV_CMD_DO_REPOSITION: EmulatedAutopilot._cmd_reposition,
+    mavlink.MAV_CMD_REQUEST_MESSAGE: EmulatedAutopilot._cmd_request_message,
+    mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: EmulatedAutopilot._cmd_message_interval,
+    mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: EmulatedAutopilot._cmd_autopilot_capabilities,
+    mavlink.MAV_CMD_GET_HOME_POSITION: EmulatedAutopilot._cmd_home_position,
+}
+# The messages the emulator streams (SET_MESSAGE_INTERVAL is accepted for these, at the fixed rates) ...
+_STREAMED = frozenset(
+    {
+        mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+        mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
+        mavlink.MAVLINK_MSG_ID_ATTITUDE, mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+        mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR,
+        mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        mavlink.MAVLINK_MSG_ID_HOME_POSITION, mavlink.MAVLINK_MSG_ID_ODOMETRY,
+    }
+)  # fmt: skip
+# ... and what MAV_CMD_REQUEST_MESSAGE sends at once (a streamed message not listed comes within its period)
+_ON_REQUEST: dict[int, Callable[[EmulatedAutopilot], None]] = {
+    **{msg_id: (lambda ap: None) for msg_id in _STREAMED},
+    mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: EmulatedAutopilot._send_autopilot_version,
+    mavlink.MAVLINK_MSG_ID_HOME_POSITION: EmulatedAutopilot._send_home_position,
+    mavlink.MAVLINK_MSG_ID_SYS_STATUS: EmulatedAutopilot._send_status,
+    mavlink.MAVLINK_MSG_ID_BATTERY_STATUS: EmulatedAutopilot._send_status,
+    mavlink.MAVLINK_MSG_ID_HEARTBEAT: EmulatedAutopilot._heartbeat,
+}
 
 
 def serve(scenario: Scenario, config: SitlConfig, airframe: Airframe | None = None) -> dict[str, Any]:
@@ -898,10 +1429,14 @@ def serve(scenario: Scenario, config: SitlConfig, airframe: Airframe | None = No
         result = ap.run()
         ap.frames.send_result(json.loads(json.dumps(result, default=float)))
         ap.frames.send_truth_log(ap.truth_arrays())
-        # A few heartbeats after the end, so the peer sees the final state before the link goes quiet.
-        for _ in range(3):
+        # Heartbeats after the end, so the peer sees the final state before the link goes quiet.
+        end = time.monotonic() + config.linger_s
+        while True:
             ap._heartbeat()
-            ap._poll(0.05)
+            ap.mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, ap._landed_state())
+            ap._poll(min(0.05, max(end - time.monotonic(), 0.0)))
+            if time.monotonic() >= end:
+                break
         return result
     finally:
         ap.close()
