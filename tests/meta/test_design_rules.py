@@ -74,6 +74,7 @@ THIRD_PARTY: dict[tuple[str, str], str] = {
     ("interfaces/replay_readers.py", "sec"): "a rosbags time stamp",
     ("interfaces/replay_readers.py", "nanosec"): "a rosbags time stamp (ROS 2; ROS 1 has nsec)",
     ("interfaces/sitl.py", "position_valid"): "a pymavlink LANDING_TARGET message (MAVLink 2 field)",
+    ("interfaces/sitl.py", "mission_type"): "a pymavlink MISSION_REQUEST_LIST (MAVLink 2 field)",
     ("compile/meter.py", "n"): "a threading.local depth counter",
 }
 # Import cycles the redesign has not broken yet (each a sorted list of module names).

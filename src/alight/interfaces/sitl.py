@@ -988,6 +988,28 @@ class EmulatedAutopilot:
     def _control(self) -> None:
         t, x = self.world.t, self.world.x
         p, v, R = x[SL_P], x[SL_V], quat_to_rotmat(x[SL_Q])
+        guided_stopped = self._supervise_setpoints(t, p, R)
+        self._land_detector(t)
+        self._descending = False
+        if not self.armed:
+            self.world.set_command(0.0, np.zeros(3), False)
+            self.thrust_N, self.w_cmd = 0.0, np.zeros(3)
+            return
+        rates = self.setpoint is not None and self.setpoint.kind == "rates"
+        if self.mode is FlightMode.OFFBOARD and rates and not guided_stopped and self.setpoint is not None:
+            thrust, w = self.setpoint.thrust_N, self.setpoint.w_B
+        else:
+            p_ref, v_ref, a_ref, yaw = self._reference(t, p, v, guided_stopped)
+            # (land: p_ref's height is the current one, so the vertical is a pure rate of descent)
+            thrust, w = position_control(
+                p, v, R, p_ref=p_ref, v_ref=v_ref, a_ref=a_ref, yaw_ref=yaw, airframe=self.airframe
+            )
+        self.thrust_N, self.w_cmd = thrust, np.asarray(w, dtype=float)
+        self.world.set_command(thrust, self.w_cmd, True)
+
+    def _supervise_setpoints(self, t: float, p: FloatArray, R: FloatArray) -> bool:
+        """The setpoint stream's rules: ArduCopter GUIDED stops and holds without setpoints (returns True
+        then); PX4 OFFBOARD without a live stream goes to its failsafe."""
         guided_stopped = False
         if self.mode is FlightMode.OFFBOARD and not self._px4:
             # ArduCopter GUIDED: without setpoints (none yet, or none for GUID_TIMEOUT) the vehicle stops
@@ -1009,69 +1031,66 @@ class EmulatedAutopilot:
                 last_setpoint_t=self.setpoint.t if self.setpoint else None,
             )
             self._set_mode(FlightMode.LAND if failsafe == "land" else FlightMode.HOLD, "offboard loss")
-        self._land_detector(t)
-        self._descending = False
-        if not self.armed:
-            self.world.set_command(0.0, np.zeros(3), False)
-            self.thrust_N, self.w_cmd = 0.0, np.zeros(3)
-            return
-        rates = self.setpoint is not None and self.setpoint.kind == "rates"
-        if self.mode is FlightMode.OFFBOARD and rates and not guided_stopped and self.setpoint is not None:
-            thrust, w = self.setpoint.thrust_N, self.setpoint.w_B
-        else:
-            p_ref: FloatArray | None = self.hold_p
-            v_ref: FloatArray | None = None
-            a_ref: FloatArray | None = None
-            yaw = self.hold_yaw
-            if self.mode is FlightMode.OFFBOARD and self.setpoint is not None and not guided_stopped:
-                sp = self.setpoint
-                p_ref, v_ref, a_ref = sp.p, sp.v, sp.a
-                yaw = self.hold_yaw if sp.yaw is None else sp.yaw
-            elif self.mode is FlightMode.TAKEOFF:
-                z = self.hold_p[2] + self._takeoff_height_m() if self.takeoff_z is None else self.takeoff_z
-                p_ref = np.array([self.hold_p[0], self.hold_p[1], z])
-                if p[2] > z - 0.1 and abs(v[2]) < 0.2:
-                    # PX4 goes on to AUTO.LOITER; ArduCopter stays in GUIDED, holding where it got to
-                    self._set_mode(FlightMode.HOLD if self._px4 else FlightMode.OFFBOARD, "takeoff done")
-                    if not self._px4:
-                        self.setpoint = Setpoint(t, "target", p=p_ref)
-                        self._goto_keep = True
-            elif self.mode is FlightMode.RTL and not self._rtl_landing:
-                z_rtl = max(float(self.hold_p[2]), float(self.home_p[2]) + self._rtl_height_m())
-                climbed = p[2] > z_rtl - 0.3
-                p_ref = np.array([self.home_p[0], self.home_p[1], z_rtl]) if climbed else self.hold_p.copy()
-                if not climbed:
-                    p_ref[2] = z_rtl  # climb first, then return
-                home_dist = math.dist(p[0:2], self.home_p[0:2])
-                if climbed and home_dist < 0.3 and float(np.linalg.norm(v)) < 0.3:
-                    self._rtl_landing = True
-                    self.hold_p = p.copy()
-            elif self.mode in (FlightMode.LAND, FlightMode.PRECLAND, FlightMode.RTL):
-                descent = self._land_speed_mps()
-                xy = self.hold_p[0:2]
-                v_xy = np.zeros(2)
-                tg = self.target
-                if (
-                    self.mode is FlightMode.PRECLAND
-                    and tg is not None
-                    and t - tg["t"] <= self.config.precland_lost_s
-                ):
-                    xy = tg["p"] + tg["v"] * (t - tg["t"])
-                    v_xy = tg["v"]
-                    self.hold_p[0:2] = xy  # a lost target leaves a plain land where it was last seen
-                    if math.dist(xy, p[0:2]) > self.config.precland_accept_m:
-                        descent = 0.0
-                    else:
-                        descent = self.config.precland_descent_mps
-                p_ref = np.array([xy[0], xy[1], p[2]])
-                v_ref = np.array([v_xy[0], v_xy[1], -descent])
-                self._descending = descent > 0.0
-            # (land: p_ref's height is the current one, so the vertical is a pure rate of descent)
-            thrust, w = position_control(
-                p, v, R, p_ref=p_ref, v_ref=v_ref, a_ref=a_ref, yaw_ref=yaw, airframe=self.airframe
-            )
-        self.thrust_N, self.w_cmd = thrust, np.asarray(w, dtype=float)
-        self.world.set_command(thrust, self.w_cmd, True)
+        return guided_stopped
+
+    def _reference(
+        self, t: float, p: FloatArray, v: FloatArray, guided_stopped: bool
+    ) -> tuple[FloatArray | None, FloatArray | None, FloatArray | None, float]:
+        """The position controller's reference ``(p_ref, v_ref, a_ref, yaw)`` in the current mode."""
+        p_ref: FloatArray | None = self.hold_p
+        v_ref: FloatArray | None = None
+        a_ref: FloatArray | None = None
+        yaw = self.hold_yaw
+        if self.mode is FlightMode.OFFBOARD and self.setpoint is not None and not guided_stopped:
+            sp = self.setpoint
+            p_ref, v_ref, a_ref = sp.p, sp.v, sp.a
+            yaw = self.hold_yaw if sp.yaw is None else sp.yaw
+        elif self.mode is FlightMode.TAKEOFF:
+            p_ref = self._takeoff_reference(t, p, v)
+        elif self.mode is FlightMode.RTL and not self._rtl_landing:
+            p_ref = self._rtl_reference(p, v)
+        elif self.mode in (FlightMode.LAND, FlightMode.PRECLAND, FlightMode.RTL):
+            p_ref, v_ref = self._land_reference(t, p)
+        return p_ref, v_ref, a_ref, yaw
+
+    def _takeoff_reference(self, t: float, p: FloatArray, v: FloatArray) -> FloatArray:
+        z = self.hold_p[2] + self._takeoff_height_m() if self.takeoff_z is None else self.takeoff_z
+        p_ref = np.array([self.hold_p[0], self.hold_p[1], z])
+        if p[2] > z - 0.1 and abs(v[2]) < 0.2:
+            # PX4 goes on to AUTO.LOITER; ArduCopter stays in GUIDED, holding where it got to
+            self._set_mode(FlightMode.HOLD if self._px4 else FlightMode.OFFBOARD, "takeoff done")
+            if not self._px4:
+                self.setpoint = Setpoint(t, "target", p=p_ref)
+                self._goto_keep = True
+        return p_ref
+
+    def _rtl_reference(self, p: FloatArray, v: FloatArray) -> FloatArray:
+        z_rtl = max(float(self.hold_p[2]), float(self.home_p[2]) + self._rtl_height_m())
+        climbed = p[2] > z_rtl - 0.3
+        p_ref = np.array([self.home_p[0], self.home_p[1], z_rtl]) if climbed else self.hold_p.copy()
+        if not climbed:
+            p_ref[2] = z_rtl  # climb first, then return
+        home_dist = math.dist(p[0:2], self.home_p[0:2])
+        if climbed and home_dist < 0.3 and float(np.linalg.norm(v)) < 0.3:
+            self._rtl_landing = True
+            self.hold_p = p.copy()
+        return p_ref
+
+    def _land_reference(self, t: float, p: FloatArray) -> tuple[FloatArray, FloatArray]:
+        descent = self._land_speed_mps()
+        xy = self.hold_p[0:2]
+        v_xy = np.zeros(2)
+        tg = self.target
+        if self.mode is FlightMode.PRECLAND and tg is not None and t - tg["t"] <= self.config.precland_lost_s:
+            xy = tg["p"] + tg["v"] * (t - tg["t"])
+            v_xy = tg["v"]
+            self.hold_p[0:2] = xy  # a lost target leaves a plain land where it was last seen
+            if math.dist(xy, p[0:2]) > self.config.precland_accept_m:
+                descent = 0.0
+            else:
+                descent = self.config.precland_descent_mps
+        self._descending = descent > 0.0
+        return np.array([xy[0], xy[1], p[2]]), np.array([v_xy[0], v_xy[1], -descent])
 
     # -- sensors out -----------------------------------------------------------------------------------
     def _send_sensors(self, imu: FloatArray) -> None:
