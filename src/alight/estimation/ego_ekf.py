@@ -438,6 +438,11 @@ def ego_update_kernel(
     symmetric positive semi-definite under round-off (the short form ``(I - K H) P`` does not, and a
     15-state filter running for 12,000 steps a minute would drift), and it stays right if the gain is
     not exactly optimal (e.g. after the reset Jacobian below).
+
+    One kernel: the 15-state update shares ``H P``, ``S`` with its Cholesky factor (for the gain and the NIS),
+    ``K`` and ``A P`` between the gain, the Joseph-form covariance and the reset Jacobian; splitting would
+    pass those (15, 15) and (15, m) arrays through more calls at every odometry message (the residual, the
+    Jacobian and the error injection are apart already).
     """
     for i in range(10):
         if i < 7 or m == 9:
