@@ -18,7 +18,6 @@ MAX_FUNCTION_LINES = 80
 PENDING_LONG: set[tuple[str, str]] = {
     ("interfaces/replay.py", "_run"),
     ("evaluation/qos_profile.py", "run_profile"),
-    ("estimation/sdu_kf.py", "update"),
     ("sim/render.py", "__init__"),
     ("mission/state_machine.py", "_step_land"),
     ("cli.py", "build_parser"),
@@ -26,25 +25,11 @@ PENDING_LONG: set[tuple[str, str]] = {
     ("interfaces/bridge_run.py", "_outputs"),
     ("evaluation/replay.py", "_background"),
     ("evaluation/report.py", "render_mission_html"),
-    ("estimation/ego_ekf.py", "update_odometry"),
     ("interfaces/replay_readers.py", "_ulog_recording"),
-    ("energy/qos.py", "budget_policy"),
-    ("planning/candidates.py", "plan"),
     ("interfaces/mcap_export.py", "_write_log"),
 }
 # numba kernels over 80 lines without a comment saying why they are one kernel
-PENDING_LONG_KERNELS: set[tuple[str, str]] = {
-    ("control/high_level.py", "high_level_kernel"),
-    ("control/l1_adaptive.py", "l1_kernel"),
-    ("perception/falanga_tag.py", "_threshold_runs"),
-    ("perception/falanga_close.py", "_cross_corners"),
-    ("perception/homography_geolocation.py", "_geolocate_kernel"),
-    ("sim/quadrotor.py", "contact_wrench"),
-    ("perception/falanga_tag.py", "_solidity"),
-    ("estimation/platform_ekf.py", "platform_update_kernel"),
-    ("estimation/ego_ekf.py", "ego_update_kernel"),
-    ("perception/falanga_close.py", "_verify"),
-}
+PENDING_LONG_KERNELS: set[tuple[str, str]] = {}
 # ``hasattr(x, "name")`` / ``getattr(x, "name", default)`` on alight's own objects, still to be replaced by a
 # Protocol or a typed field: (module, attribute name). Calls on objects that are not alight's (pymavlink
 # messages, rosbags and pyulog records, os, numba, PyYAML's exceptions, thread-locals) carry a

@@ -244,6 +244,12 @@ def high_level_kernel(
 
     Returns:
         True when the inputs and outputs are finite.
+
+    One kernel: the steps hand each other the thrust vector as clipped, whether its vertical part was floored,
+    c_ref and three rotation matrices (R, R_ref, R_des); the flatness feed-forward and the frame from the
+    thrust vector are already @njit helpers (``_flat_state``, ``_frame_from_thrust_vector``), and what is left
+    reads top to bottom as the paper's steps. A further split would pass those arrays and flags through more
+    calls at every control tick for no gain in clarity.
     """
     R = np.empty((3, 3))
     R_ref = np.empty((3, 3))

@@ -188,6 +188,11 @@ def l1_kernel(
     Returns:
         False (state untouched) when an input is not finite, or (state updated) when the new state or
         output is not finite; the caller then falls back to the baseline and resets the state.
+
+    One kernel: the predictor, the adaptation law and C(s) read and write the one packed ``state`` in the
+    order the module docstring derives them (the drag term R D R^T v feeds the predictor's input and is stored
+    for the next call; the output needs the filtered estimate just updated). Split, the stages would only hand
+    slices of ``state`` and ``R`` to each other, once per control tick.
     """
     if not math.isfinite(t):
         return False

@@ -680,18 +680,12 @@ def budget_policy(
     :meth:`QosEnergyModel.best_within_budget`)."""
     if not (math.isfinite(budget_J)):
         raise ValueError(f"budget_J must be finite, got {budget_J}")
-    cands = model.grid_settings() if candidates is None else sorted(set(candidates))
-    if not cands:
-        raise ValueError("no candidate settings")
-    power = model.power_W_many(cands)
-    if max_utilisation is not None and model.busy_core_W is not None:
-        keep = power / model.busy_core_W <= max_utilisation
-        if not keep.any():
-            return BudgetPolicy(
-                None, None, "every candidate needs more than one device core (slower than real time)"
-            )
-        cands = [c for c, k in zip(cands, keep, strict=True) if k]
-        power = power[keep]
+    real_time = _real_time_candidates(model, candidates, max_utilisation)
+    if real_time is None:
+        return BudgetPolicy(
+            None, None, "every candidate needs more than one device core (slower than real time)"
+        )
+    cands, power = real_time
     rate = model.baseline_W + power
     cheapest = cands[int(np.argmin(rate))]
     phases = [Mode(m) for m in phase_durations]
@@ -705,29 +699,15 @@ def budget_policy(
         if any(not (math.isfinite(v) and v > 0) for v in w.values()):
             raise ValueError(f"weights must be positive, got {weights}")
     quality = np.log(np.array([c.quality for c in cands]))
-    # Pareto front of partial choices: (energy, value, choice indices)
-    front: list[tuple[float, float, tuple[int, ...]]] = [(0.0, 0.0, ())]
-    for p, d in zip(phases, durs, strict=True):
-        e_opt = rate * d
-        v_opt = quality * d * w.get(p, 1.0)  # ln quality: the utility of the docstring
-        merged = [(e + e_opt[i], v + v_opt[i], ch + (i,)) for e, v, ch in front for i in range(len(cands))]
-        merged = [m for m in merged if m[0] <= budget_J * (1 + 1e-12)]
-        if not merged:
-            e_min = sum(float(rate.min()) * dd for dd in durs)
-            return BudgetPolicy(
-                None,
-                None,
-                f"no per-phase choice fits {budget_J:.4g} J: the cheapest setting in every phase "
-                f"needs {e_min:.4g} J",
-            )
-        # keep the non-dominated ones: by energy ascending, value strictly increasing
-        merged.sort(key=lambda m: (m[0], -m[1]))
-        front = []
-        best_v = -math.inf
-        for m in merged:
-            if m[1] > best_v + 1e-15:
-                front.append(m)
-                best_v = m[1]
+    front = _pareto_front(rate, quality, phases, durs, w, budget_J)
+    if front is None:
+        e_min = sum(float(rate.min()) * dd for dd in durs)
+        return BudgetPolicy(
+            None,
+            None,
+            f"no per-phase choice fits {budget_J:.4g} J: the cheapest setting in every phase "
+            f"needs {e_min:.4g} J",
+        )
     e, v, ch = max(front, key=lambda m: (m[1], -m[0]))
     policy = PhasePolicy({p: cands[i] for p, i in zip(phases, ch, strict=True)}, cheapest)
     return BudgetPolicy(
@@ -736,6 +716,53 @@ def budget_policy(
         f"maximal utility {v:.4g} (sum w d ln q) over {len(phases)} phase(s) within {budget_J:.4g} J "
         f"(predicted {e:.4g} J)",
     )
+
+
+def _real_time_candidates(
+    model: QosEnergyModel, candidates: Iterable[QosSetting] | None, max_utilisation: float | None
+) -> tuple[list[QosSetting], FloatArray] | None:
+    """:func:`budget_policy`'s candidates (sorted, distinct) and their power (W); with ``max_utilisation``
+    only those within it of one busy core; None when that leaves none."""
+    cands = model.grid_settings() if candidates is None else sorted(set(candidates))
+    if not cands:
+        raise ValueError("no candidate settings")
+    power = model.power_W_many(cands)
+    if max_utilisation is not None and model.busy_core_W is not None:
+        keep = power / model.busy_core_W <= max_utilisation
+        if not keep.any():
+            return None
+        cands = [c for c, k in zip(cands, keep, strict=True) if k]
+        power = power[keep]
+    return cands, power
+
+
+def _pareto_front(
+    rate: FloatArray,
+    quality: FloatArray,
+    phases: list[Mode],
+    durs: list[float],
+    w: Mapping[Mode, float],
+    budget_J: float,
+) -> list[tuple[float, float, tuple[int, ...]]] | None:
+    """The non-dominated partial choices (energy J, utility, a candidate index per phase) of the
+    multiple-choice knapsack, merged phase by phase; None when no choice fits ``budget_J``."""
+    front: list[tuple[float, float, tuple[int, ...]]] = [(0.0, 0.0, ())]
+    for p, d in zip(phases, durs, strict=True):
+        e_opt = rate * d
+        v_opt = quality * d * w.get(p, 1.0)  # ln quality: the utility of budget_policy's docstring
+        merged = [(e + e_opt[i], v + v_opt[i], ch + (i,)) for e, v, ch in front for i in range(len(rate))]
+        merged = [m for m in merged if m[0] <= budget_J * (1 + 1e-12)]
+        if not merged:
+            return None
+        # keep the non-dominated ones: by energy ascending, value strictly increasing
+        merged.sort(key=lambda m: (m[0], -m[1]))
+        front = []
+        best_v = -math.inf
+        for m in merged:
+            if m[1] > best_v + 1e-15:
+                front.append(m)
+                best_v = m[1]
+    return front
 
 
 def measurements_info(**extra: Any) -> dict[str, Any]:

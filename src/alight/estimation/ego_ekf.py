@@ -438,6 +438,11 @@ def ego_update_kernel(
     symmetric positive semi-definite under round-off (the short form ``(I - K H) P`` does not, and a
     15-state filter running for 12,000 steps a minute would drift), and it stays right if the gain is
     not exactly optimal (e.g. after the reset Jacobian below).
+
+    One kernel: the 15-state update shares ``H P``, ``S`` with its Cholesky factor (for the gain and the NIS),
+    ``K`` and ``A P`` between the gain, the Joseph-form covariance and the reset Jacobian; splitting would
+    pass those (15, 15) and (15, m) arrays through more calls at every odometry message (the residual, the
+    Jacobian and the error injection are apart already).
     """
     for i in range(10):
         if i < 7 or m == 9:
@@ -885,44 +890,9 @@ class EgoEkf:
             raise EstimationError("EgoEkf.update_odometry called before initialize")
         if not math.isfinite(t):
             raise EstimationError(f"EgoEkf.update_odometry: time must be finite, got {t}")
-        m = 6 if v_WB is None else 9
-        try:
-            self._z[0:3] = p_WB
-            self._z[3:7] = q_WB
-            if v_WB is not None:
-                self._z[7:10] = v_WB
-        except (ValueError, TypeError) as e:
-            raise EstimationError(f"EgoEkf.update_odometry: bad measurement shape: {e}") from None
-        if cov_p is None and cov_theta is None and cov_v is None:
-            Rm = self._R9 if m == 9 else self._R6
-        else:
-            Rm = (self._R9 if m == 9 else self._R6).copy()
-            if cov_p is not None:
-                Rm[0:3, 0:3] = _cov3(cov_p, "cov_p")
-            if cov_theta is not None:
-                Rm[3:6, 3:6] = _cov3(cov_theta, "cov_theta")
-            if cov_v is not None and m == 9:
-                Rm[6:9, 6:9] = _cov3(cov_v, "cov_v")
-        # checked here, before any propagation, so that a bad message leaves the filter untouched
-        z = self._z[: m + 1].tolist()
-        if not (
-            math.isfinite(sum(z))
-            and (Rm is self._R9 or Rm is self._R6 or math.isfinite(float(Rm.sum())))  # configured: checked
-        ):
-            raise EstimationError(f"EgoEkf.update_odometry: non-finite measurement or covariance at t={t}")
-        # physical bounds (alight.estimation.guards): a position, a unit quaternion, a speed, a time;
-        # on Python floats (40 Hz: three numpy dot products cost more than the filter's update)
-        check_time(t, "EgoEkf.update_odometry")
-        nq2 = z[3] * z[3] + z[4] * z[4] + z[5] * z[5] + z[6] * z[6]
-        if not (0.25 <= nq2 <= 4.0):  # a rotation's quaternion has norm 1; renormalised below
-            raise MeasurementError(f"EgoEkf.update_odometry: q_WB {z[3:7]} is not a rotation")
-        if z[0] * z[0] + z[1] * z[1] + z[2] * z[2] > MAX_POSITION_M**2 or (
-            m == 9 and z[7] * z[7] + z[8] * z[8] + z[9] * z[9] > MAX_SPEED_MPS**2
-        ):
-            raise MeasurementError(
-                f"EgoEkf.update_odometry: position beyond {MAX_POSITION_M:g} m or speed beyond "
-                f"{MAX_SPEED_MPS:g} m/s at t={t}"
-            )
+        m = self._load_measurement(p_WB, q_WB, v_WB)
+        Rm = self._measurement_noise(m, cov_p, cov_theta, cov_v)
+        self._check_measurement(t, m, Rm)
         lag = self._t - t
         if lag > self.config.max_odometry_lag:
             self.n_odometry_rejected += 1
@@ -933,13 +903,7 @@ class EgoEkf:
             self.n_odometry_rejected += 1
             return False
         if lag < 0.0:
-            if self._has_imu:  # hold the last IMU sample over the gap
-                self.predict_imu(t, self._imu[0:3].copy(), self._imu[3:6].copy())
-            else:  # no IMU yet: hold the velocity (the sample an unaccelerated body would give)
-                R = np.empty((3, 3))
-                quat_to_R(self._x[6:10], R)
-                f = R.T @ np.array([0.0, 0.0, self.config.gravity]) + self._x[10:13]
-                self.predict_imu(t, f, self._x[13:16].copy())
+            self._hold_to(t)
         elif lag > 0.0:
             self._move_forward(lag, m)
         if self.config.odometry_gate and self._gated(Rm):
@@ -955,6 +919,65 @@ class EgoEkf:
         self.n_odometry_updates += 1
         self._state_cache = None
         return True
+
+    def _load_measurement(self, p_WB: FloatArray, q_WB: FloatArray, v_WB: FloatArray | None) -> int:
+        """The measurement into ``self._z`` (position, quaternion, velocity); its size m (6 or 9)."""
+        try:
+            self._z[0:3] = p_WB
+            self._z[3:7] = q_WB
+            if v_WB is not None:
+                self._z[7:10] = v_WB
+        except (ValueError, TypeError) as e:
+            raise EstimationError(f"EgoEkf.update_odometry: bad measurement shape: {e}") from None
+        return 6 if v_WB is None else 9
+
+    def _measurement_noise(
+        self, m: int, cov_p: FloatArray | None, cov_theta: FloatArray | None, cov_v: FloatArray | None
+    ) -> FloatArray:
+        """R (m, m): the configured one (shared, not copied) unless a message covariance replaces a block."""
+        if cov_p is None and cov_theta is None and cov_v is None:
+            return self._R9 if m == 9 else self._R6
+        Rm = (self._R9 if m == 9 else self._R6).copy()
+        if cov_p is not None:
+            Rm[0:3, 0:3] = _cov3(cov_p, "cov_p")
+        if cov_theta is not None:
+            Rm[3:6, 3:6] = _cov3(cov_theta, "cov_theta")
+        if cov_v is not None and m == 9:
+            Rm[6:9, 6:9] = _cov3(cov_v, "cov_v")
+        return Rm
+
+    def _check_measurement(self, t: float, m: int, Rm: FloatArray) -> None:
+        """Checked before any propagation, so that a bad message leaves the filter untouched: finite
+        values, and physical bounds (alight.estimation.guards: a position, a unit quaternion, a speed,
+        a time) on Python floats (40 Hz: three numpy dot products cost more than the filter's update)."""
+        z = self._z[: m + 1].tolist()
+        if not (
+            math.isfinite(sum(z))
+            and (Rm is self._R9 or Rm is self._R6 or math.isfinite(float(Rm.sum())))  # configured: checked
+        ):
+            raise EstimationError(f"EgoEkf.update_odometry: non-finite measurement or covariance at t={t}")
+        check_time(t, "EgoEkf.update_odometry")
+        nq2 = z[3] * z[3] + z[4] * z[4] + z[5] * z[5] + z[6] * z[6]
+        if not (0.25 <= nq2 <= 4.0):  # a rotation's quaternion has norm 1; renormalised below
+            raise MeasurementError(f"EgoEkf.update_odometry: q_WB {z[3:7]} is not a rotation")
+        if z[0] * z[0] + z[1] * z[1] + z[2] * z[2] > MAX_POSITION_M**2 or (
+            m == 9 and z[7] * z[7] + z[8] * z[8] + z[9] * z[9] > MAX_SPEED_MPS**2
+        ):
+            raise MeasurementError(
+                f"EgoEkf.update_odometry: position beyond {MAX_POSITION_M:g} m or speed beyond "
+                f"{MAX_SPEED_MPS:g} m/s at t={t}"
+            )
+
+    def _hold_to(self, t: float) -> None:
+        """Propagate to a message newer than the filter with the last IMU sample held, or without an
+        IMU yet with the velocity held (the sample an unaccelerated body would give)."""
+        if self._has_imu:
+            self.predict_imu(t, self._imu[0:3].copy(), self._imu[3:6].copy())
+        else:
+            R = np.empty((3, 3))
+            quat_to_R(self._x[6:10], R)
+            f = R.T @ np.array([0.0, 0.0, self.config.gravity]) + self._x[10:13]
+            self.predict_imu(t, f, self._x[13:16].copy())
 
     def _gated(self, Rm: FloatArray) -> bool:
         """The position gate on ``self._z`` (module config); True when the message is refused. After

@@ -301,6 +301,11 @@ def platform_update_kernel(
     ``gate > 0`` a distance above it returns ``REJECTED`` (``xo, Po`` then hold the prediction only).
     ``H`` selects p (and theta), so ``H P`` is rows of ``P``. Joseph form for the same reason as in the
     ego filter: the covariance stays symmetric positive definite under round-off.
+
+    One kernel: the prediction, the innovation and its Cholesky-solved distance for the gate, the gain and the
+    Joseph update share ``H P``, ``S``, its factor ``L`` and ``K`` (propagation and residual are apart
+    already: ``platform_propagate``, ``platform_residual``); splitting would pass those arrays through more
+    calls per measurement.
     """
     n = x.shape[0]
     platform_propagate(x, P, dt, q, max_step, xo, Po)

@@ -339,11 +339,7 @@ class SduKalmanFilter:
         t_c = float(measurement.t)
         p = measurement.p_WP.tolist()
         cov = measurement.cov_p_WP
-        if not math.isfinite(t_c):  # PlatformMeasurement itself refuses non-finite arrays
-            raise EstimationError(f"SduKalmanFilter.update: non-finite capture time {t_c}")
-        check_time(t_c, "SduKalmanFilter.update")
-        check_vector(measurement.p_WP, 3, MAX_POSITION_M, "p_WP", "SduKalmanFilter.update")
-        check_covariance(cov, 3, "SduKalmanFilter.update", "cov_p_WP")
+        self._check_measurement(measurement, t_c)
         if t_c > self._t_clock + FUTURE_TOLERANCE_S:  # False without a clock (NaN)
             self.n_future += 1
             return False
@@ -352,34 +348,9 @@ class SduKalmanFilter:
         elif t_c > self._tf:
             self._move_to(t_c)
         if t_c < self._tf - c.history_s:
-            self.n_too_old += 1
-            # a run of them, in order: the filter's time came from a measurement stamped in the future
-            if self._late_t and t_c < self._late_t[-1]:
-                self._late_t.clear()
-            self._late_t.append(t_c)
-            if len(self._late_t) < c.reinit_after_rejections:
-                return False
-            counters = (self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts + 1)
-            self.reset()
-            self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts = counters
-            return self.update(measurement)
+            return self._too_old(measurement, t_c)
         self._late_t.clear()
-        pb = self._ego_position(t_c)
-        zx, zy = pb[0] - p[0], pb[1] - p[1]  # x_obs: the UAV relative to the pad at t_c
-        dt_obs = (self._tf - t_c) if c.delay_s is None else c.delay_s
-        self.last_delay_s = dt_obs
-        if c.compensate_delay and dt_obs > 0.0:
-            t_from = self._tf - dt_obs
-            if t_from < self._kt[0]:
-                t_from = self._kt[0]
-            a = self._displacement(t_from)
-            b = self._displacement(self._tf)
-            dx, dy = b[0] - a[0], b[1] - a[1]
-            if c.compensation_velocity == "relative":
-                dx -= b[2] - a[2]
-                dy -= b[3] - a[3]
-            zx += dx
-            zy += dy
+        zx, zy, dt_obs = self._relative_observation(t_c, p)
         if c.use_measurement_covariance:
             r00, r01, r11 = float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1])
         else:
@@ -388,22 +359,8 @@ class SduKalmanFilter:
         t_gain = self._tf
         if c.compensate_delay and c.capture_time_gain:
             t_gain = max(self._tf - max(dt_obs, 0.0), self._tcap if self._has else -math.inf)
-        if self._has and c.gating:
-            # the gate, before the measurement touches anything (the shift above reads only the past)
-            q = (t_gain - self._tcap) * c.sigma_imu_mps**2
-            g00, g01, g11 = self._p00 + q + r00, self._p01 + r01, self._p11 + q + r11
-            gdet = g00 * g11 - g01 * g01
-            e0, e1 = zx - self._x0, zy - self._x1
-            if (
-                gdet > 0.0
-                and (e0 * (g11 * e0 - g01 * e1) + e1 * (g00 * e1 - g01 * e0)) > GATE_SIGMA**2 * gdet
-            ):
-                self.n_gated += 1
-                self._consecutive_gated += 1
-                if self._consecutive_gated >= c.reinit_after_rejections:
-                    self._has = False  # the track is lost: the next measurement starts it again
-                    self._consecutive_gated = 0
-                return False
+        if self._has and c.gating and self._gated(zx, zy, t_gain, r00, r01, r11):
+            return False
         self._consecutive_gated = 0
         self.velocity_estimator.update(t_c, measurement.p_WP, cov, measurement.yaw)
         if c.turn_model and self.velocity_estimator.initialized:
@@ -419,10 +376,79 @@ class SduKalmanFilter:
             self._has = True
             self._hold_inputs()
             return True
-        # eq. (2): e = z - H x, S = H P H^T + R, K = P H^T S^-1, x += K e, P = (I - K H) P, with P (eq. 1)
-        # at t_gain
-        e0, e1 = zx - self._x0, zy - self._x1
+        self._fuse(zx, zy, t_gain, r00, r01, r11, t_c)
+        # the platform velocity just changed: hold it from now on
+        self._hold_inputs()
+        return True
+
+    def _check_measurement(self, measurement: PlatformMeasurement, t_c: float) -> None:
+        """A clear EstimationError for a non-finite time, an out-of-range position or a bad covariance."""
+        if not math.isfinite(t_c):  # PlatformMeasurement itself refuses non-finite arrays
+            raise EstimationError(f"SduKalmanFilter.update: non-finite capture time {t_c}")
+        check_time(t_c, "SduKalmanFilter.update")
+        check_vector(measurement.p_WP, 3, MAX_POSITION_M, "p_WP", "SduKalmanFilter.update")
+        check_covariance(measurement.cov_p_WP, 3, "SduKalmanFilter.update", "cov_p_WP")
+
+    def _too_old(self, measurement: PlatformMeasurement, t_c: float) -> bool:
+        """A measurement captured before the kept history: refused, unless a run of them (in order) says
+        the filter's time came from a measurement stamped in the future; then the filter restarts from it."""
+        self.n_too_old += 1
+        if self._late_t and t_c < self._late_t[-1]:
+            self._late_t.clear()
+        self._late_t.append(t_c)
+        if len(self._late_t) < self.config.reinit_after_rejections:
+            return False
+        counters = (self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts + 1)
+        self.reset()
+        self.n_updates, self.n_too_old, self.n_gated, self.n_future, self.n_restarts = counters
+        return self.update(measurement)
+
+    def _relative_observation(self, t_c: float, p: list[float]) -> tuple[float, float, float]:
+        """x_obs, the UAV relative to the pad at t_c, shifted to the filter's time when the delay is
+        compensated; and the delay used (s)."""
+        c = self.config
+        pb = self._ego_position(t_c)
+        zx, zy = pb[0] - p[0], pb[1] - p[1]
+        dt_obs = (self._tf - t_c) if c.delay_s is None else c.delay_s
+        self.last_delay_s = dt_obs
+        if c.compensate_delay and dt_obs > 0.0:
+            t_from = self._tf - dt_obs
+            if t_from < self._kt[0]:
+                t_from = self._kt[0]
+            a = self._displacement(t_from)
+            b = self._displacement(self._tf)
+            dx, dy = b[0] - a[0], b[1] - a[1]
+            if c.compensation_velocity == "relative":
+                dx -= b[2] - a[2]
+                dy -= b[3] - a[3]
+            zx += dx
+            zy += dy
+        return zx, zy, dt_obs
+
+    def _gated(self, zx: float, zy: float, t_gain: float, r00: float, r01: float, r11: float) -> bool:
+        """The gate, before the measurement touches anything (the shift reads only the past): True (and
+        counted) when the innovation is beyond GATE_SIGMA; a run of them drops the track."""
+        c = self.config
         q = (t_gain - self._tcap) * c.sigma_imu_mps**2
+        g00, g01, g11 = self._p00 + q + r00, self._p01 + r01, self._p11 + q + r11
+        gdet = g00 * g11 - g01 * g01
+        e0, e1 = zx - self._x0, zy - self._x1
+        if gdet > 0.0 and (e0 * (g11 * e0 - g01 * e1) + e1 * (g00 * e1 - g01 * e0)) > GATE_SIGMA**2 * gdet:
+            self.n_gated += 1
+            self._consecutive_gated += 1
+            if self._consecutive_gated >= c.reinit_after_rejections:
+                self._has = False  # the track is lost: the next measurement starts it again
+                self._consecutive_gated = 0
+            return True
+        return False
+
+    def _fuse(
+        self, zx: float, zy: float, t_gain: float, r00: float, r01: float, r11: float, t_c: float
+    ) -> None:
+        """Eq. (2): e = z - H x, S = H P H^T + R, K = P H^T S^-1, x += K e, P = (I - K H) P, with P
+        (eq. 1) at t_gain."""
+        e0, e1 = zx - self._x0, zy - self._x1
+        q = (t_gain - self._tcap) * self.config.sigma_imu_mps**2
         P00, P01, P11 = self._p00 + q, self._p01, self._p11 + q
         s00, s01, s11 = P00 + r00, P01 + r01, P11 + r11
         det = s00 * s11 - s01 * s01
@@ -443,9 +469,6 @@ class SduKalmanFilter:
         self._tcap = t_gain
         self.last_innovation = np.array([e0, e1])
         self.last_nis = e0 * (i00 * e0 + i01 * e1) + e1 * (i01 * e0 + i11 * e1)
-        # the platform velocity just changed: hold it from now on
-        self._hold_inputs()
-        return True
 
     # ---- outputs ----------------------------------------------------------------------------------
 

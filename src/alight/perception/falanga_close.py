@@ -346,6 +346,10 @@ def _cross_corners(poly, ws, hs, min_edge, cos_lo, cos_hi):  # pragma: no cover 
     A vertex is a corner when ``cos_lo <= cos(turn) <= cos_hi``. Returns ``(ok, inner (4, 2), outer (8, 2),
     has_outer (8,))``: ``inner[k]`` is the image of ``FalangaTag.cross_inner_corners_P()[k]``, ``outer[k]``
     that of ``cross_outer_corners_P()[k]`` where ``has_outer[k]``.
+
+    One kernel: steps 3-5 walk the same merged outline (``V``, ``VB``) and its corner and concavity flags back
+    and forth with indices modulo n, and any failed arm ends the whole search early; split, those four arrays
+    and the labels would go through every call. The edge merging is already apart (``_merge_short_edges``).
     """
     inner = np.zeros((4, 2))
     outer = np.zeros((8, 2))
@@ -535,6 +539,10 @@ def _verify(  # pragma: no cover - numba
     ``start``/``ref`` (k, 1, 2): corners before and after ``cv2.cornerSubPix``; ``idx`` (k,): which corner
     (0-3 inner, 4 + j outer j); ``P_xy`` (12, 2): the inner then outer corners in P (m). Returns ``(ok,
     keep (k,), frac)``: the corners to use and the pattern fraction.
+
+    One kernel: steps 6 and 7 share the homography ``H``, which step 6 refits when it drops outer corners and
+    step 7 samples the pattern through, and each check can end the verification early; the maths it uses
+    (``homography_lsq``, ``map_point``, ``bilinear``) is apart already.
     """
     k = idx.shape[0]
     keep = np.zeros(k, np.bool_)

@@ -194,6 +194,11 @@ def _threshold_runs(img, radius_tiles, offset_frac, offset_min, use_floor):  # p
     max(offset_min, offset_frac (p98 - p2))`` from the image's 2nd and 98th brightness percentiles. Returns
     ``(n_runs, row, x0, x1, root, bx0, bx1, by0, by1)``: run k spans columns x0[k]..x1[k] of row[k];
     ``root[k]`` is the run that represents k's component, where the bounding box arrays are valid.
+
+    One kernel: the tile sums, the brightness percentiles, the tile threshold ``T`` and the labelling of the
+    runs against it work on the same frame, per camera frame on the detector's hot path; the union-find
+    is already apart (``link_run``, ``run_roots``). ``T`` is the seam if it is ever split; it is kept whole so
+    as not to add a compiled kernel (compile/kernels.json, the warm-up) for no speed or clarity gain.
     """
     h, w = img.shape
     th = (h + _TILE - 1) // _TILE
@@ -319,6 +324,11 @@ def _solidity(row, x0, x1, root, cands, by0, by1):  # pragma: no cover - numba
     - quadness: the largest quadrangle on the hull's vertices over the hull's area (~1 for a quadrangle,
       2/pi for an ellipse);
     - that quadrangle's corners, shape (nc, 4, 2), (x, y) in pixels.
+
+    One kernel: per candidate, the row extents, their monotone-chain hull (in buffers reused across
+    candidates), its area and the largest quadrangle (``_max_quad``, apart) are one loop; the hull is the seam
+    if it is ever split, kept inline so as not to add a compiled kernel (compile/kernels.json, the warm-up) on
+    the detector's per-frame path.
     """
     nc = cands.shape[0]
     slot = np.full(row.shape[0], -1, np.int32)

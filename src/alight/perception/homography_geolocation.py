@@ -256,7 +256,13 @@ def _geolocate_kernel(
     """Steps 1-7 for the method's pixels ``mpx`` (N, 2) (normalised ``xy`` (N, 2), their Jacobians ``dxy``
     (N, 2, 2)) -> ``pts`` (N, 3) in W, and the first-order covariance of their mean -> ``cov`` (3, 3) from
     the variances ``var`` = (pixel, attitude, ego x/y, altitude, plane). ``lever`` = ``[R_WB p_BC]x``.
-    Returns 0, or 1 when a pixel's ray misses the plane, 2 when the homography is degenerate."""
+    Returns 0, or 1 when a pixel's ray misses the plane, 2 when the homography is degenerate.
+
+    One kernel: one compiled call per detection gives the points and the first-order covariance of their mean,
+    which share ``R_WC``, the normalised pixels and their Jacobians; the ground homography and its application
+    are apart already (``_ground_homography``, ``apply_homography``). The covariance pass is the seam if it is
+    ever split; it stays here so as not to add a compiled kernel (compile/kernels.json, the warm-up).
+    """
     c = math.cos(psi)
     s = math.sin(psi)
     # step 1: R_HC = Rz(psi)^T R_WC = R_tilt R_BC, the camera in the level heading frame

@@ -267,28 +267,8 @@ class CandidatePlanner:
         ``|new(t_c).p - current(t_c).p| < adopt_threshold_m``.
         """
         c = self.config
-        # Fresh writable copies (3 floats each): numba compiles one signature per read-only flag, and the
-        # state arrives read-only (a frozen EgoState) or writable depending on the caller; always writable
-        # keeps _plan_kernel (and the kernels it calls) to one compiled signature instead of three.
-        P0 = np.array(p0, dtype=np.float64)
-        V0 = np.array(v0, dtype=np.float64)
-        A0 = np.array(a0, dtype=np.float64)
-        te = np.ascontiguousarray(end_times, dtype=np.float64)
-        PF = np.ascontiguousarray(p_end, dtype=np.float64)
-        VF = np.ascontiguousarray(v_end, dtype=np.float64)
-        n = te.shape[0] if te.ndim == 1 else 0
-        if P0.shape != (3,) or V0.shape != (3,) or A0.shape != (3,):
-            raise ValueError(f"p0, v0, a0 must have shape (3,), got {P0.shape}, {V0.shape}, {A0.shape}")
-        if n == 0 or PF.shape != (n, 3) or VF.shape != (n, 3):
-            raise ValueError(
-                f"need end_times (n,), p_end and v_end (n, 3); got {te.shape}, {PF.shape}, {VF.shape}"
-            )
-        if a_end is None:
-            AF = self._zero_af
-        else:
-            AF = np.ascontiguousarray(a_end, dtype=np.float64).reshape(-1, 3)
-            if AF.shape[0] not in (1, n):
-                raise ValueError(f"a_end must have shape (3,) or ({n}, 3)")
+        P0, V0, A0, te, PF, VF, AF = self._arrays(p0, v0, a0, end_times, p_end, v_end, a_end)
+        n = te.shape[0]
         fz = c.floor_z if floor_z is None else float(floor_z)
         prev = self._previous
         coef = np.empty((3, n, 3))
@@ -317,3 +297,38 @@ class CandidatePlanner:
             )
         self._previous = best
         return PlanResult(best, True, PlanStatus.ADOPTED, n_feasible, costs, codes, floor_ok, b, best, dist)
+
+    def _arrays(
+        self,
+        p0: FloatArray,
+        v0: FloatArray,
+        a0: FloatArray,
+        end_times: FloatArray,
+        p_end: FloatArray,
+        v_end: FloatArray,
+        a_end: FloatArray | None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:meth:`plan`'s inputs as contiguous float64 arrays, their shapes checked (ValueError)."""
+        # Fresh writable copies (3 floats each): numba compiles one signature per read-only flag, and the
+        # state arrives read-only (a frozen EgoState) or writable depending on the caller; always writable
+        # keeps _plan_kernel (and the kernels it calls) to one compiled signature instead of three.
+        P0 = np.array(p0, dtype=np.float64)
+        V0 = np.array(v0, dtype=np.float64)
+        A0 = np.array(a0, dtype=np.float64)
+        te = np.ascontiguousarray(end_times, dtype=np.float64)
+        PF = np.ascontiguousarray(p_end, dtype=np.float64)
+        VF = np.ascontiguousarray(v_end, dtype=np.float64)
+        n = te.shape[0] if te.ndim == 1 else 0
+        if P0.shape != (3,) or V0.shape != (3,) or A0.shape != (3,):
+            raise ValueError(f"p0, v0, a0 must have shape (3,), got {P0.shape}, {V0.shape}, {A0.shape}")
+        if n == 0 or PF.shape != (n, 3) or VF.shape != (n, 3):
+            raise ValueError(
+                f"need end_times (n,), p_end and v_end (n, 3); got {te.shape}, {PF.shape}, {VF.shape}"
+            )
+        if a_end is None:
+            AF = self._zero_af
+        else:
+            AF = np.ascontiguousarray(a_end, dtype=np.float64).reshape(-1, 3)
+            if AF.shape[0] not in (1, n):
+                raise ValueError(f"a_end must have shape (3,) or ({n}, 3)")
+        return P0, V0, A0, te, PF, VF, AF

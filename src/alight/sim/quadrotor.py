@@ -394,7 +394,13 @@ def contact_wrench(
     ``deck_depth`` below it presses on the deck, whose surface velocity at the foot is the deck's
     velocity plus its turn (yaw rate x lever arm); any other foot below z = 0 presses on the ground.
     Normal force ``max(k d + c d', 0)`` (d the penetration), friction ``-mu N v_t / sqrt(|v_t|^2 +
-    v_slip^2)`` against the foot's tangential velocity relative to the surface."""
+    v_slip^2)`` against the foot's tangential velocity relative to the surface.
+
+    One kernel: the physics' innermost loop, called at every integrator stage, accumulating
+    each foot's force and torque as it goes (the common case, no foot near a surface, leaves at
+    ``feet_clear``); a per-foot helper would hand back the foot's force, its surface and whether it touches,
+    four times per stage, for a loop body that already reads as the docstring's three sentences.
+    """
     for j in range(3):
         f_W[j] = 0.0
         tau_B[j] = 0.0
