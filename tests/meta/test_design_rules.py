@@ -29,7 +29,7 @@ PENDING_LONG: set[tuple[str, str]] = {
     ("interfaces/mcap_export.py", "_write_log"),
 }
 # numba kernels over 80 lines without a comment saying why they are one kernel
-PENDING_LONG_KERNELS: set[tuple[str, str]] = {}
+PENDING_LONG_KERNELS: set[tuple[str, str]] = set()
 # ``hasattr(x, "name")`` / ``getattr(x, "name", default)`` on alight's own objects, still to be replaced by a
 # Protocol or a typed field: (module, attribute name). Calls on objects that are not alight's (pymavlink
 # messages, rosbags and pyulog records, os, numba, PyYAML's exceptions, thread-locals) carry a
