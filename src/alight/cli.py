@@ -307,112 +307,152 @@ def _cmd_bridge(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="alight", description="Autonomous landing on moving platforms.")
-    parser.add_argument("--version", action="store_true", help="print the version and exit")
-    sub = parser.add_subparsers(dest="command")
-
-    fly = sub.add_parser("fly", help="fly one mission and write result.json, the log, plots and report.html")
-    fly.add_argument("scenario", help="scenario YAML file")
-    fly.add_argument("--out", default=None, help="output directory (required unless --print-config)")
-    fly.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    fly.add_argument(
+def _fly_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight fly``."""
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--out", default=None, help="output directory (required unless --print-config)")
+    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument(
         "--replay", action="store_true", help="also write replay.gif (camera view with detections, top view)"
     )
-    fly.add_argument("--mcap", action="store_true", help="also write flight.mcap (Foxglove schemas)")
-    fly.add_argument(
-        "--bag", default=None, metavar="PATH", help="also write the flight as a ROS 2 bag at PATH"
-    )
-    fly.add_argument(
+    p.add_argument("--mcap", action="store_true", help="also write flight.mcap (Foxglove schemas)")
+    p.add_argument("--bag", default=None, metavar="PATH", help="also write the flight as a ROS 2 bag at PATH")
+    p.add_argument(
         "--bag-storage", choices=("mcap", "sqlite3"), default="mcap", help="storage of --bag (default mcap)"
     )
-    fly.add_argument(
+    p.add_argument(
         "--print-config",
         action="store_true",
         help="print the effective configuration (blocks with parameters after preset + overrides) and exit",
     )
-    fly.add_argument(
+    p.add_argument(
         "--no-warmup",
         action="store_true",
         help="skip the warm-up flight that compiles numba's kernels before the mission's clock starts",
     )
-    fly.set_defaults(func=_cmd_fly)
 
-    blk = sub.add_parser("blocks", help="list every block, its parameters and what it works with")
-    blk.set_defaults(func=_cmd_blocks)
 
-    det = sub.add_parser("detect", help="run a detector on images; one JSON line per image")
-    det.add_argument("images", nargs="+")
-    det.add_argument("--detector", required=True, help="an image detector block (`alight blocks` lists them)")
-    det.add_argument("--camera", default=None, help="camera calibration (OpenCV YAML) for the pose")
-    det.set_defaults(func=_cmd_detect)
+def _detect_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight detect``."""
+    p.add_argument("images", nargs="+")
+    p.add_argument("--detector", required=True, help="an image detector block (`alight blocks` lists them)")
+    p.add_argument("--camera", default=None, help="camera calibration (OpenCV YAML) for the pose")
 
-    bench = sub.add_parser("bench", help="run the performance benchmarks and print a JSON summary")
-    bench.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
-    bench.add_argument("--only", default=None, help="comma-separated benchmark groups to run")
-    bench.set_defaults(func=_cmd_bench)
 
-    camp = sub.add_parser(
-        "campaign", help="fly a campaign's missions; results.csv, summary.json, report.html (resumable)"
-    )
-    camp.add_argument("campaign", help="campaign YAML file")
-    camp.add_argument("--out", default=None, help="output directory (default runs/<campaign name>)")
-    camp.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes or Dask")
-    camp.add_argument("--scheduler", default=None, help="Dask scheduler address (default: a local cluster)")
-    camp.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")
-    camp.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
-    camp.add_argument("--limit", type=int, default=None, help="only the first N missions of the campaign")
-    camp.set_defaults(func=_cmd_campaign)
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight bench``."""
+    p.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
+    p.add_argument("--only", default=None, help="comma-separated benchmark groups to run")
 
-    rep = sub.add_parser("report", help="(re)write a campaign's summary.json and report.html")
-    rep.add_argument("dir", help="campaign output directory")
-    rep.set_defaults(func=_cmd_report)
 
-    rpl = sub.add_parser(
-        "replay", help="run perception and estimation on a recorded flight (PX4 ULog, ROS 1/2 bag, MCAP)"
-    )
-    rpl.add_argument("log", help=".ulg, .bag, a ROS 2 bag directory, .db3 or .mcap")
-    rpl.add_argument("--out", required=True, help="output directory")
-    rpl.add_argument("--mapping", default=None, help="topic mapping YAML (default: the packaged one)")
-    rpl.add_argument(
-        "--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)"
-    )
-    rpl.set_defaults(func=_cmd_replay)
+def _campaign_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight campaign``."""
+    p.add_argument("campaign", help="campaign YAML file")
+    p.add_argument("--out", default=None, help="output directory (default runs/<campaign name>)")
+    p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes or Dask")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")
+    p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
+    p.add_argument("--limit", type=int, default=None, help="only the first N missions of the campaign")
 
-    sitl = sub.add_parser("sitl", help="serve a scenario's world as an emulated autopilot over MAVLink (UDP)")
-    sitl.add_argument("scenario", help="scenario YAML file")
-    sitl.add_argument("--port", type=int, required=True, help="UDP port to listen on (camera: PORT + 1, TCP)")
-    sitl.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    sitl.add_argument(
+
+def _report_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight report``."""
+    p.add_argument("dir", help="campaign output directory")
+
+
+def _replay_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight replay``."""
+    p.add_argument("log", help=".ulg, .bag, a ROS 2 bag directory, .db3 or .mcap")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--mapping", default=None, help="topic mapping YAML (default: the packaged one)")
+    p.add_argument("--scenario", default=None, help="scenario YAML whose preset to run (default falanga2017)")
+
+
+def _sitl_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight sitl``."""
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--port", type=int, required=True, help="UDP port to listen on (camera: PORT + 1, TCP)")
+    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument(
         "--flavour", choices=("px4", "ardupilot"), default="px4", help="which autopilot to emulate"
     )
-    sitl.add_argument(
+    p.add_argument(
         "--speed", type=float, default=0.0, help="cap on simulated/wall time (0: lockstep, no cap)"
     )
-    sitl.add_argument("--no-lockstep", action="store_true", help="do not wait for the companion (real time)")
-    sitl.add_argument("--failsafe", choices=("hold", "land"), default="hold", help="action on offboard loss")
-    sitl.add_argument("--offboard-loss-s", type=float, default=None, help="COM_OF_LOSS_T / GUID_TIMEOUT (s)")
-    sitl.set_defaults(func=_cmd_sitl)
+    p.add_argument("--no-lockstep", action="store_true", help="do not wait for the companion (real time)")
+    p.add_argument("--failsafe", choices=("hold", "land"), default="hold", help="action on offboard loss")
+    p.add_argument("--offboard-loss-s", type=float, default=None, help="COM_OF_LOSS_T / GUID_TIMEOUT (s)")
 
-    br = sub.add_parser(
-        "bridge", help="run the pipeline against an autopilot over MAVLink; result.json, report"
-    )
-    br.add_argument(
-        "--connect", required=True, help="udp:HOST:PORT (connect), udpin:HOST:PORT, serial device"
-    )
-    br.add_argument("--out", required=True, help="output directory")
-    br.add_argument("--mode", choices=("offboard", "landing-target"), default="offboard")
-    br.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4")
-    br.add_argument("--setpoint", choices=("rates", "position"), default="rates", help="offboard setpoints")
-    br.add_argument("--arm", action="store_true", help="allow the bridge to arm the vehicle")
-    br.add_argument(
+
+def _bridge_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``alight bridge``."""
+    p.add_argument("--connect", required=True, help="udp:HOST:PORT (connect), udpin:HOST:PORT, serial device")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--mode", choices=("offboard", "landing-target"), default="offboard")
+    p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4")
+    p.add_argument("--setpoint", choices=("rates", "position"), default="rates", help="offboard setpoints")
+    p.add_argument("--arm", action="store_true", help="allow the bridge to arm the vehicle")
+    p.add_argument(
         "--scenario", default=None, help="scenario YAML choosing the preset (default: the emulator's)"
     )
-    br.add_argument(
+    p.add_argument(
         "--camera", default=None, help="tcp:HOST:PORT, device index, file or URL (default: PORT + 1)"
     )
-    br.add_argument("--max-wall-s", type=float, default=None, help="stop after this much wall time")
-    br.set_defaults(func=_cmd_bridge)
+    p.add_argument("--max-wall-s", type=float, default=None, help="stop after this much wall time")
+
+
+_Command = tuple[
+    str, str, Callable[[argparse.ArgumentParser], None] | None, Callable[[argparse.Namespace], int]
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The `alight` command line: one subcommand per row of the table, its arguments added by a helper."""
+    parser = argparse.ArgumentParser(prog="alight", description="Autonomous landing on moving platforms.")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="command")
+    commands: tuple[_Command, ...] = (
+        (
+            "fly",
+            "fly one mission and write result.json, the log, plots and report.html",
+            _fly_arguments,
+            _cmd_fly,
+        ),
+        ("blocks", "list every block, its parameters and what it works with", None, _cmd_blocks),
+        ("detect", "run a detector on images; one JSON line per image", _detect_arguments, _cmd_detect),
+        ("bench", "run the performance benchmarks and print a JSON summary", _bench_arguments, _cmd_bench),
+        (
+            "campaign",
+            "fly a campaign's missions; results.csv, summary.json, report.html (resumable)",
+            _campaign_arguments,
+            _cmd_campaign,
+        ),
+        ("report", "(re)write a campaign's summary.json and report.html", _report_arguments, _cmd_report),
+        (
+            "replay",
+            "run perception and estimation on a recorded flight (PX4 ULog, ROS 1/2 bag, MCAP)",
+            _replay_arguments,
+            _cmd_replay,
+        ),
+        (
+            "sitl",
+            "serve a scenario's world as an emulated autopilot over MAVLink (UDP)",
+            _sitl_arguments,
+            _cmd_sitl,
+        ),
+        (
+            "bridge",
+            "run the pipeline against an autopilot over MAVLink; result.json, report",
+            _bridge_arguments,
+            _cmd_bridge,
+        ),
+    )
+    for name, help_text, add_arguments, func in commands:
+        p = sub.add_parser(name, help=help_text)
+        if add_arguments is not None:
+            add_arguments(p)
+        p.set_defaults(func=func)
     return parser
 
 

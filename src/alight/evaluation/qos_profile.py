@@ -218,22 +218,15 @@ def _host_info() -> dict[str, Any]:
     }
 
 
-def run_profile(
-    cfg: ProfileConfig | None = None, *, host_mips_1t: float | None = None, frames: list[Frame] | None = None
-) -> QosMeasurements:
-    """Render the frame mix, time the detector at every (scale, kernel) pair and return the measurements
-    (module docstring). ``host_mips_1t``: the host's 7-Zip rating (default: measured with 7-Zip when it
-    is installed, else :data:`alight.energy.compute.HOST_MIPS_1T`, which is right only on the reference
-    host). ``frames``: use these instead of rendering the mix of ``cfg`` (every kind must be present)."""
-    cfg = cfg or ProfileConfig()
-    wall0 = time.perf_counter()
-    load0 = os.getloadavg() if hasattr(os, "getloadavg") else None
-    rng = np.random.default_rng(cfg.seed)
-    if frames is None:
-        frames = render_frames(cfg, rng)
-    elif {f.kind for f in frames} != set(FRAME_KINDS):
-        raise ValueError(f"frames must include every kind {FRAME_KINDS}")
-    pairs = [(i, j) for i in range(len(cfg.image_scale)) for j in range(len(cfg.max_kernel_px))]
+_Pair = tuple[int, int]
+"""A setting of the grid: (index into ``image_scale``, index into ``max_kernel_px``)."""
+
+
+def _time_detectors(
+    cfg: ProfileConfig, frames: list[Frame], rng: np.random.Generator, pairs: list[_Pair]
+) -> dict[str, _Acc]:
+    """Each frame's median CPU time and hit at every setting, by frame kind; the settings in a fresh
+    random order on every frame (``rng``), single-threaded OpenCV, after a warm-up on the first frames."""
     inner = SduMarkerDetector(SduPad.default(), camera=PinholeCamera.default_downward())
     dets = {
         (i, j): QosDetector(
@@ -268,10 +261,20 @@ def run_profile(
                     a.hit.setdefault(key, []).append(ok)
     finally:
         cv2.setNumThreads(threads)
+    return acc
 
+
+_Tables = dict[str, np.ndarray]
+
+
+def _tables(
+    cfg: ProfileConfig, acc: dict[str, _Acc], pairs: list[_Pair]
+) -> tuple[_Tables, _Tables, _Tables, np.ndarray]:
+    """The per-setting tables: CPU time's mean and median by kind and over the mix, the detection rate
+    by kind and over the visible kinds, and the false detection rate on the frames without the pad."""
     shape = (len(cfg.image_scale), len(cfg.max_kernel_px))
 
-    def table(values: dict[tuple[int, int], list[float]] | None, fn: Any) -> np.ndarray:
+    def table(values: dict[_Pair, list[float]] | None, fn: Any) -> np.ndarray:
         t = np.zeros(shape)
         for key in pairs:
             t[key] = fn(values[key]) if values and values.get(key) else 0.0
@@ -291,7 +294,16 @@ def run_profile(
     vis = {key: [float(x) for k in ("far", "near", "partial") for x in acc[k].hit[key]] for key in pairs}
     det["visible"] = table(vis, mean)
     fdr = table({key: [float(x) for x in acc["absent"].hit[key]] for key in pairs}, mean)
+    return cpu_mean, cpu_med, det, fdr
 
+
+def _profile_info(
+    cfg: ProfileConfig,
+    host_mips_1t: float | None,
+    load0: tuple[float, float, float] | None,
+    wall0: float,
+) -> tuple[float, dict[str, Any]]:
+    """The host's 7-Zip rating (given, measured or assumed) and the measurements' provenance."""
     mips_measured = measure_host_mips() if host_mips_1t is None else None
     mips = host_mips_1t if host_mips_1t is not None else (mips_measured or HOST_MIPS_1T)
     mips_how = (
@@ -326,6 +338,28 @@ def run_profile(
             "their cache and memory contention"
         ),
     )
+    return float(mips), info
+
+
+def run_profile(
+    cfg: ProfileConfig | None = None, *, host_mips_1t: float | None = None, frames: list[Frame] | None = None
+) -> QosMeasurements:
+    """Render the frame mix, time the detector at every (scale, kernel) pair and return the measurements
+    (module docstring). ``host_mips_1t``: the host's 7-Zip rating (default: measured with 7-Zip when it
+    is installed, else :data:`alight.energy.compute.HOST_MIPS_1T`, which is right only on the reference
+    host). ``frames``: use these instead of rendering the mix of ``cfg`` (every kind must be present)."""
+    cfg = cfg or ProfileConfig()
+    wall0 = time.perf_counter()
+    load0 = os.getloadavg() if hasattr(os, "getloadavg") else None
+    rng = np.random.default_rng(cfg.seed)
+    if frames is None:
+        frames = render_frames(cfg, rng)
+    elif {f.kind for f in frames} != set(FRAME_KINDS):
+        raise ValueError(f"frames must include every kind {FRAME_KINDS}")
+    pairs = [(i, j) for i in range(len(cfg.image_scale)) for j in range(len(cfg.max_kernel_px))]
+    acc = _time_detectors(cfg, frames, rng, pairs)
+    cpu_mean, cpu_med, det, fdr = _tables(cfg, acc, pairs)
+    mips, info = _profile_info(cfg, host_mips_1t, load0, wall0)
     return QosMeasurements(
         rate_hz=tuple(float(r) for r in cfg.rate_hz),
         image_scale=tuple(float(s) for s in cfg.image_scale),

@@ -229,7 +229,19 @@ class _Scene:
     px_per_m: float  # top-view scale
 
 
-def _background(log: Mapping[str, np.ndarray], lay: _Layout, title: str) -> _Scene:
+@dataclasses.dataclass
+class _Tracks:
+    """The log's channels the replay draws, as float arrays (nan where a channel is missing)."""
+
+    t: np.ndarray  # (N,) sample times (s)
+    p_WB: np.ndarray  # (N, 3) UAV position in W (m)
+    p_WP: np.ndarray  # (N, 3) platform position in W (m)
+    p_est: np.ndarray  # (N, 3) estimated platform position in W (m)
+    p_det: np.ndarray  # (M, 3) detections' platform positions in W (m), in time order
+    mode: np.ndarray  # (N,) the mission mode's name at each sample
+
+
+def _tracks(log: Mapping[str, np.ndarray]) -> _Tracks:
     t = np.asarray(log["t"], dtype=np.float64)
     n = t.shape[0]
     p_WB = np.asarray(log["p_WB"], dtype=np.float64).reshape(n, 3)
@@ -241,18 +253,12 @@ def _background(log: Mapping[str, np.ndarray], lay: _Layout, title: str) -> _Sce
         raise ValueError(f"t_det has {t_det.shape[0]} entries but p_WP_meas has {p_det.shape[0]}")
     p_det = p_det[np.argsort(t_det, kind="stable")]  # drawn in time order, as the frames reach them
     mode = np.asarray(log.get("mode", np.full(n, "", dtype=np.str_))).astype(str)
+    return _Tracks(t=t, p_WB=p_WB, p_WP=p_WP, p_est=p_est, p_det=p_det, mode=mode)
 
-    dpi = 100
-    fig = new_figure(lay.width / dpi, lay.height / dpi)
-    fig.set_dpi(dpi)
-    fig.text(12 / lay.width, 1 - 24 / lay.height, title, fontsize=11, fontweight="bold", va="baseline")
 
-    if lay.camera is not None:
-        axc = _add_axes(fig, lay.camera, lay)
-        axc.set_axis_off()
-        axc.set_title("onboard camera", fontsize=9, loc="left", pad=3)
-
-    # -- top view ------------------------------------------------------------------------------------
+def _draw_top_view(fig: Figure, lay: _Layout, tr: _Tracks) -> Axes:
+    """The top view's faint tracks, equal-scale limits around them, and the legend."""
+    p_WB, p_WP = tr.p_WB, tr.p_WP
     ax = _add_axes(fig, lay.top, lay)
     ax.plot(p_WP[:, 0], p_WP[:, 1], color=_rgb01(_PLATFORM_FAINT), lw=1.2)
     ax.plot(p_WB[:, 0], p_WB[:, 1], color=_rgb01(_UAV_FAINT), lw=1.2)
@@ -278,21 +284,25 @@ def _background(log: Mapping[str, np.ndarray], lay: _Layout, title: str) -> _Sce
         ax.plot([], [], color=_rgb01(_UAV), lw=2, label="UAV")[0],
         ax.plot([], [], color=_rgb01(_PLATFORM), lw=2, label="platform")[0],
     ]
-    if np.isfinite(p_est).any():
+    if np.isfinite(tr.p_est).any():
         handles.append(
             ax.plot(
                 [], [], ls="none", marker="o", mfc="none", mec=_rgb01(_ESTIMATE), mew=2, label="estimate"
             )[0]
         )
-    if p_det.shape[0]:
+    if tr.p_det.shape[0]:
         handles.append(ax.plot([], [], ls="none", marker=".", color=_rgb01(_ESTIMATE), label="detections")[0])
     ax.legend(handles=handles, loc="lower right", fontsize=6.5, framealpha=0.85, handlelength=1.4)
+    return ax
 
-    # -- altitude strip ------------------------------------------------------------------------------
+
+def _draw_altitude(fig: Figure, lay: _Layout, tr: _Tracks) -> Axes:
+    """The altitude strip: the faint heights over time under a band of the mission's modes."""
+    t, p_WB, p_WP = tr.t, tr.p_WB, tr.p_WP
     axa = _add_axes(fig, lay.alt, lay)
     axa.plot(t, p_WP[:, 2], color=_rgb01(_PLATFORM_FAINT), lw=1.0)
     axa.plot(t, p_WB[:, 2], color=_rgb01(_UAV_FAINT), lw=1.0)
-    for m, t0, t1 in mode_segments(t, mode):
+    for m, t0, t1 in mode_segments(t, tr.mode):
         axa.axvspan(t0, t1, ymin=0.86, ymax=1.0, color=mode_color(m), lw=0)
     z = np.concatenate([p_WB[:, 2], p_WP[:, 2]])
     z = z[np.isfinite(z)]
@@ -303,6 +313,27 @@ def _background(log: Mapping[str, np.ndarray], lay: _Layout, title: str) -> _Sce
     axa.set_ylabel("z (m)", fontsize=8, labelpad=1)
     axa.set_xlabel("t (s)", fontsize=8, labelpad=0)
     axa.grid(True, lw=0.4, alpha=0.6)
+    return axa
+
+
+def _background(log: Mapping[str, np.ndarray], lay: _Layout, title: str) -> _Scene:
+    """The replay's static picture (title, camera box, top view, altitude strip) drawn once, and where
+    each sample of the tracks falls on it in pixels, for the frames to draw over."""
+    tr = _tracks(log)
+    t, p_WB, p_WP = tr.t, tr.p_WB, tr.p_WP
+    n = t.shape[0]
+
+    dpi = 100
+    fig = new_figure(lay.width / dpi, lay.height / dpi)
+    fig.set_dpi(dpi)
+    fig.text(12 / lay.width, 1 - 24 / lay.height, title, fontsize=11, fontweight="bold", va="baseline")
+
+    if lay.camera is not None:
+        axc = _add_axes(fig, lay.camera, lay)
+        axc.set_axis_off()
+        axc.set_title("onboard camera", fontsize=9, loc="left", pad=3)
+    ax = _draw_top_view(fig, lay, tr)
+    axa = _draw_altitude(fig, lay, tr)
 
     fig.canvas.draw()
     bg = np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy()  # type: ignore[attr-defined]
@@ -321,8 +352,8 @@ def _background(log: Mapping[str, np.ndarray], lay: _Layout, title: str) -> _Sce
         background=bg,
         uav_px=_to_pixels(ax, p_WB[:, :2], H),
         plat_px=_to_pixels(ax, p_WP[:, :2], H),
-        est_px=_to_pixels(ax, p_est[:, :2], H),
-        det_px=_to_pixels(ax, p_det[:, :2], H),
+        est_px=_to_pixels(ax, tr.p_est[:, :2], H),
+        det_px=_to_pixels(ax, tr.p_det[:, :2], H),
         alt_uav_px=_to_pixels(axa, np.column_stack([t, p_WB[:, 2]]), H),
         alt_plat_px=_to_pixels(axa, np.column_stack([t, p_WP[:, 2]]), H),
         alt_t_px=alt_t,

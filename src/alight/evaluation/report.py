@@ -359,15 +359,8 @@ def _events_line(events: Mapping[str, float | None]) -> str:
     return f'<div class="legend">{" &middot; ".join(parts)}</div>' if parts else ""
 
 
-def render_mission_html(
-    result: Mapping[str, Any],
-    log: Mapping[str, np.ndarray],
-    events: Mapping[str, float | None],
-    figures: Mapping[str, bytes],
-    replay_gif: str | None = None,
-) -> str:
-    """The report page as a string; ``figures`` maps a :data:`FIGURES` stem to PNG bytes; ``replay_gif``
-    is the relative path of the mission's animated replay, when there is one."""
+def _header_html(result: Mapping[str, Any]) -> list[str]:
+    """The page's head and its header: the title, the outcome badge, the preset, seed and success line."""
     esc = html.escape
     outcome = str(result.get("outcome") or "unknown")
     color = OUTCOME_COLORS.get(outcome.lower(), "#59636e")
@@ -379,8 +372,7 @@ def render_mission_html(
             sub.append(f"{label} <b>{esc(str(result[key]))}</b>")
     if "success" in result:
         sub.append("success <b>" + ("yes" if result.get("success") else "no") + "</b>")
-
-    out = [
+    return [
         "<!DOCTYPE html>",
         '<html lang="en">',
         "<head>",
@@ -396,17 +388,25 @@ def render_mission_html(
         f'<span class="badge" style="background:{color}">{esc(outcome)}</span>',
         f'<p class="sub">{" &middot; ".join(sub)}</p>' if sub else "",
         "</header>",
-        '<section class="cards">',
     ]
+
+
+def _cards_html(result: Mapping[str, Any], log: Mapping[str, np.ndarray]) -> list[str]:
+    """The section of headline figures, one card each."""
+    esc = html.escape
+    out = ['<section class="cards">']
     for label, value, main in _cards(result, log):
         cls = "card main" if main else "card"
         card = f'<div class="k">{esc(label)}</div><div class="v">{esc(value)}</div>'
         out.append(f'<div class="{cls}">{card}</div>')
     out.append("</section>")
-    out.append(_timeline_html(log))
-    out.append(_events_line(events))
-    out.append(_compute_html(result))
+    return out
 
+
+def _figures_html(figures: Mapping[str, bytes], replay_gif: str | None) -> list[str]:
+    """The figures inlined as PNG data, in :data:`FIGURES` order, then the linked replay GIF if any."""
+    esc = html.escape
+    out: list[str] = []
     for stem, heading, _ in FIGURES:
         png = figures.get(stem)
         if png is None:
@@ -419,7 +419,6 @@ def render_mission_html(
             f"<figcaption>{esc(stem)}.png</figcaption>",
             "</figure>",
         ]
-
     if replay_gif:
         # Linked, not inlined: the GIF is megabytes and sits next to the report in the mission directory.
         out += [
@@ -429,8 +428,13 @@ def render_mission_html(
             f"<figcaption>{esc(replay_gif)}: onboard camera with detections, top view, altitude</figcaption>",
             "</figure>",
         ]
+    return out
 
-    out += ["<h2>Result</h2>", "<table>", "<thead><tr><th>field</th><th>value</th></tr></thead>", "<tbody>"]
+
+def _result_table_html(result: Mapping[str, Any]) -> list[str]:
+    """Every field of ``result.json`` as a table row, then the scenario as YAML-like text."""
+    esc = html.escape
+    out = ["<h2>Result</h2>", "<table>", "<thead><tr><th>field</th><th>value</th></tr></thead>", "<tbody>"]
     for key, value in result.items():
         if key == "scenario" and isinstance(value, Mapping):
             text = "(see Scenario below)"
@@ -445,10 +449,30 @@ def render_mission_html(
     if sc is not None:
         body = sc if isinstance(sc, str) else "\n".join(yamlish(sc))
         out += ["<h2>Scenario</h2>", f"<pre>{esc(body)}</pre>"]
+    return out
 
+
+def render_mission_html(
+    result: Mapping[str, Any],
+    log: Mapping[str, np.ndarray],
+    events: Mapping[str, float | None],
+    figures: Mapping[str, bytes],
+    replay_gif: str | None = None,
+) -> str:
+    """The report page as a string; ``figures`` maps a :data:`FIGURES` stem to PNG bytes; ``replay_gif``
+    is the relative path of the mission's animated replay, when there is one."""
     version = result.get("alight_version")
-    out += [
-        f"<footer>alight {esc(str(version))}</footer>" if version is not None else "<footer>alight</footer>",
+    out = [
+        *_header_html(result),
+        *_cards_html(result, log),
+        _timeline_html(log),
+        _events_line(events),
+        _compute_html(result),
+        *_figures_html(figures, replay_gif),
+        *_result_table_html(result),
+        f"<footer>alight {html.escape(str(version))}</footer>"
+        if version is not None
+        else "<footer>alight</footer>",
         "</main>",
         "</body>",
         "</html>",

@@ -570,34 +570,42 @@ class Renderer:
             raise ValueError("a numpy Generator (rng) is needed for the sensor noise")
         self._rng = rng
         self._R_BC = np.asarray(CameraMount.downward().R_BC if R_BC is None else R_BC, dtype=np.float64)
-        W, H = int(camera.width), int(camera.height)
-        self.width, self.height = W, H
+        self.width, self.height = int(camera.width), int(camera.height)
+        valid, fisheye = self._init_rays()
+        self._init_textures(fisheye)
+        self._init_effects(valid, rng)
+        self._init_buffers()
 
-        # 1. per-pixel rays, full and half resolution (cached by the camera's parameters)
+    def _init_rays(self) -> tuple[NDArray[np.bool_], bool]:
+        """Step 1: the per-pixel rays, full and half resolution (cached by the camera's parameters).
+        Returns which pixels have a ray, and whether the camera sees rays over 75 deg off its axis."""
+        W, H = self.width, self.height
         self._pyrup = H % 2 == 0 and W % 2 == 0
-        rays = _camera_rays(camera, self._pyrup)
+        rays = _camera_rays(self.camera, self._pyrup)
         self._rx, self._ry, self._rz, self._hx, self._hy, self._hz, self._pixel_angle = rays
-        H2, W2 = self._half_shape = ((H + 1) // 2, (W + 1) // 2)
+        self._half_shape = ((H + 1) // 2, (W + 1) // 2)
 
         # rays with z_C <= 0 (a field of view over 180 deg), rays over 75 deg off the optical axis (a
         # fisheye's), and pixels without a ray
         valid = (self._rx != 0) | (self._ry != 0) | (self._rz != 0)
         self._wide = bool(np.any((self._rz <= 0) & valid))
         fisheye = bool(np.any((self._rz < math.cos(math.radians(75.0))) & valid))
+        return valid, fisheye
 
-        # 2. textures
+    def _init_textures(self, fisheye: bool) -> None:
+        """Step 2: the ground's and the deck's mip pyramids, and the deck's outline in P."""
+        opt = self.options
         self._color = bool(opt.color)
         self._chan: tuple[int, ...] = (3,) if self._color else ()
-        C = 3 if self._color else 1
         sky: int | tuple[int, int, int] = int(opt.sky_dn)
         if self._color:
             sky = opt.sky_bgr if opt.sky_bgr is not None else (int(opt.sky_dn),) * 3
-        self._glevels, self._haze = _ground_pyramid(ground_texture, sky, self._color)
+        self._glevels, self._haze = _ground_pyramid(self.ground, sky, self._color)
         # a fisheye sees from the nadir to the horizon at once: one level for the frame would alias the
         # far ground badly, so it picks a level per ray from an atlas of all levels
         self._atlas = _ground_atlas(self._glevels) if fisheye else None
         deck_args: tuple[object, ...] = (
-            pad,
+            self.pad,
             float(opt.pad_px_per_m),
             float(opt.deck_length_m),
             float(opt.deck_width_m),
@@ -619,7 +627,11 @@ class Renderer:
             [np.c_[(1 - t) * corners[k] + t * corners[(k + 1) % 4], np.zeros(len(t))] for k in range(4)]
         )
 
-        # 3. effects
+    def _init_effects(self, valid: NDArray[np.bool_], rng: np.random.Generator | None) -> None:
+        """Step 3: the brightness lookup table, the vignetting, the mask of pixels without a ray and the
+        sensor-noise bank (the only draw from ``rng``)."""
+        opt = self.options
+        W, H = self.width, self.height
         self._drift_factor = 1.0
         self._lut, self._lut_identity = self._make_lut(1.0)
         self._vignette: NDArray[np.uint8] | None = None
@@ -653,6 +665,11 @@ class Renderer:
             self._noise_pos = np.clip(bank, 0, 255).astype(np.uint8)
             self._noise_neg = np.clip(-bank, 0, 255).astype(np.uint8)
 
+    def _init_buffers(self) -> None:
+        """The scratch arrays every frame reuses."""
+        W, H = self.width, self.height
+        H2, W2 = self._half_shape
+        C = 3 if self._color else 1
         self._buf = _Buffers(
             gmx=np.empty(H2 * W2, np.float32),
             gmy=np.empty(H2 * W2, np.float32),
