@@ -29,7 +29,7 @@ PENDING_LONG_KERNELS: set[tuple[str, str]] = set()
 # Protocol or a typed field: (module, attribute name). Calls on objects that are not alight's (pymavlink
 # messages, rosbags and pyulog records, os, numba, PyYAML's exceptions, thread-locals) carry a
 # ``# third-party`` comment on the line or are listed in THIRD_PARTY with what the object is.
-PENDING_CAPABILITY_CHECKS: set[tuple[str, str]] = {}
+PENDING_CAPABILITY_CHECKS: set[tuple[str, str]] = set()
 
 
 THIRD_PARTY: dict[tuple[str, str], str] = {

@@ -171,7 +171,8 @@ def function_spec(fn: MissionFn | str | None) -> str:
     if isinstance(fn, str):
         resolve_function(fn)
         return fn
-    module, qualname = getattr(fn, "__module__", None), getattr(fn, "__qualname__", "")
+    # any callable: a function has both names, a functools.partial or a callable object may have neither
+    module, qualname = getattr(fn, "__module__", None), getattr(fn, "__qualname__", "")  # third-party
     if not module or "<" in qualname or module == "__main__":
         raise AlightError(f"mission function {fn!r} must be a module-level function of an importable module")
     spec = f"{module}:{qualname}"

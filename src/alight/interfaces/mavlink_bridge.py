@@ -49,7 +49,7 @@ from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
 from alight.airframe import DEFAULT_AIRFRAME, Airframe  # noqa: E402
 from alight.errors import ConfigError, EstimationError  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
-from alight.interfaces.camera_source import CameraSource  # noqa: E402
+from alight.interfaces.camera_source import CameraSource, SocketCameraSource  # noqa: E402
 from alight.mission.pipeline import Pipeline  # noqa: E402
 from alight.mission.touchdown_detector import TouchdownState  # noqa: E402
 from alight.types import FloatArray, Mode, quat_to_rotmat, yaw_of  # noqa: E402
@@ -468,11 +468,10 @@ class MavlinkBridge:
         cam = self.camera
         if cam is None:
             return
-        wait = getattr(cam, "last_seq", None)
-        if wait is not None and self.lockstep:
+        if isinstance(cam, SocketCameraSource) and self.lockstep:
             # The emulator announced a frame on MAVLink: wait for it on the camera stream (lockstep).
             deadline = time.monotonic() + 1.0
-            while getattr(cam, "last_seq", 0) < self.frame_seq_expected and time.monotonic() < deadline:
+            while cam.last_seq < self.frame_seq_expected and time.monotonic() < deadline:
                 frame = cam.read()
                 if frame is not None:
                     self._on_frame(t, *frame)
@@ -816,7 +815,7 @@ def optical_flow_rad_B(msg: Any) -> FloatArray | None:
 
 
 def cam_clock_is_companion(camera: CameraSource | None) -> bool:
-    return camera is not None and getattr(camera, "clock", "autopilot") == "companion"
+    return camera is not None and camera.clock == "companion"
 
 
 _HANDLERS = {

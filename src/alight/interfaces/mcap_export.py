@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from alight.cameras.pinhole import PinholeCamera
 from alight.errors import ReplayError
 from alight.evaluation.log import log_channel
 from alight.types import Observation
@@ -125,9 +126,9 @@ class McapExporter:
         self._closed = False
 
     def _calibration_msg(self, camera: Any) -> Any:
-        K = getattr(camera, "K", None)
-        if camera is None or K is None or not hasattr(camera, "dist"):
+        if not isinstance(camera, PinholeCamera):
             return None  # not a pinhole camera (an omnidirectional model has no CameraCalibration)
+        K = camera.K
         msg = self._classes["calibration"]()
         msg.frame_id = CAMERA_FRAME
         msg.width, msg.height = int(camera.width), int(camera.height)

@@ -64,6 +64,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from alight.cameras import CameraModel, CameraMount
+from alight.cameras.omni import OmniCamera
+from alight.cameras.pinhole import PinholeCamera
 from alight.pads import PadDesign
 from alight.sim.textures import DeckTexture, GroundTexture, make_deck_texture
 from alight.types import FloatArray
@@ -451,17 +453,17 @@ def _freeze(value: object) -> object:
 
 
 def _camera_key(camera: object) -> object | None:
-    """The camera's type and constructor parameters when it is a frozen dataclass (the camera models of
-    :mod:`alight.cameras` are): two such cameras with equal parameters have equal rays, so every mission's
-    new ``PinholeCamera.default_downward()`` shares one entry. None for anything else."""
-    params = getattr(type(camera), "__dataclass_params__", None)
-    if params is None or not params.frozen:
+    """The camera's type and constructor parameters when it is one of :mod:`alight.cameras`' models (frozen
+    dataclasses): two such cameras with equal parameters have equal rays, so every mission's new
+    ``PinholeCamera.default_downward()`` shares one entry. None for anything else (a camera model
+    registered from outside the package is rendered without the shared cache)."""
+    if not isinstance(camera, PinholeCamera | OmniCamera):
         return None
     try:
         return (
             type(camera).__module__,
             type(camera).__qualname__,
-            tuple((f.name, _freeze(getattr(camera, f.name))) for f in dataclasses.fields(camera) if f.init),  # type: ignore[arg-type]
+            tuple((f.name, _freeze(getattr(camera, f.name))) for f in dataclasses.fields(camera) if f.init),
         )
     except TypeError:
         return None
