@@ -43,6 +43,7 @@ from alight.estimation.guards import (
     StampRun,
     bounded_steps,
     check_clock,
+    check_real_inputs,
     check_time,
     check_times,
     imu_plausible,
@@ -743,6 +744,7 @@ class EgoEkf:
         same as ``delta_xy``/``delta_z``). A restart after gated messages is the estimate's own drift
         being corrected, not a jump of the frame, and adds nothing."""
         self._consecutive_gated = 0
+        self._gated_from = (math.nan, np.zeros(3))
         self._imu_run = StampRun(IMU_RUN)
         self.n_relocalizations = 0
         """Restarts at a pose the odometry announced as a jump of its frame (:meth:`relocalize`)."""
@@ -813,6 +815,8 @@ class EgoEkf:
                 self._imu_run.clear()
         else:  # the rare path, checked in full (before the first sample: a gap the odometry's hold judged)
             dt = self._imu_gap(t)
+        if np.iscomplexobj(f_B) or np.iscomplexobj(w_B):
+            check_real_inputs(t, (f_B, w_B), "EgoEkf.predict_imu")  # raises
         try:
             self._imu[6:9] = f_B
             self._imu[9:12] = w_B
@@ -882,6 +886,7 @@ class EgoEkf:
                 f"EgoEkf.predict_imu_many: n={n} samples need ts (>= n,), f_B and w_B (>= n, 3), got "
                 f"{np.shape(ts)}, {np.shape(f_B)}, {np.shape(w_B)}"
             )
+        check_real_inputs(0.0, (f_B, w_B), "EgoEkf.predict_imu_many")
         f_B = np.asarray(f_B, dtype=np.float64)  # no copy for the drivers' arrays
         w_B = np.asarray(w_B, dtype=np.float64)
         if not self._has_imu:
@@ -938,7 +943,7 @@ class EgoEkf:
         with the last IMU sample held; one older by at most ``max_odometry_lag`` is moved forward; older
         ones are rejected and counted. Returns True when fused.
         """
-        t = check_time(t, "EgoEkf.update_odometry")  # guards: a real, finite time (None, "x": refused)
+        t = check_real_inputs(t, (p_WB, q_WB, v_WB), "EgoEkf.update_odometry")  # guards: no None, "x", 1j
         if not self._initialized:
             raise EstimationError("EgoEkf.update_odometry called before initialize")
         if not math.isfinite(t):
@@ -1027,13 +1032,21 @@ class EgoEkf:
             return False
         self.n_odometry_gated += 1
         self._consecutive_gated += 1
+        if self._consecutive_gated == 1:  # where the run of refused messages starts (for its velocity)
+            self._gated_from = (self._t, self._z[0:3].copy())
         if self._consecutive_gated < self.config.odometry_reset_after:
             return True
         # the estimate drifted away from every message: restart at the odometry's pose (its own drift
         # corrected, not a jump of the odometry's frame: nothing added to reset_delta_p_WB)
         q = self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
-        # the estimate's velocity only when plausible (guards): after a corrupt IMU stretch it is not
-        self._restart(self._t, self._z[0:3].copy(), plausible_velocity(self._x[3:6]), q)
+        # the estimate's velocity is judged wrong with its position (it carried it away): the message's
+        # own, or the refused messages' mean velocity, bounded by guards.plausible_velocity
+        if Rm.shape[0] == 9:
+            v = self._z[7:10].copy()
+        else:
+            t0, p0 = self._gated_from
+            v = (self._z[0:3] - p0) / (self._t - t0) if self._t > t0 else np.zeros(3)
+        self._restart(self._t, self._z[0:3].copy(), plausible_velocity(v), q)
         self.n_odometry_resets += 1
         return True
 
@@ -1058,6 +1071,7 @@ class EgoEkf:
         and add the jump (the new position minus the estimate, propagated to ``t``) to
         ``reset_delta_p_WB``. Raises like :meth:`update_odometry` on a message that is not a pose."""
         t = check_clock(t, self._t, "EgoEkf.relocalize")  # guards: within the tolerance of the IMU clock
+        check_real_inputs(t, (p_WB, q_WB, v_WB), "EgoEkf.relocalize")
         try:
             p = np.asarray(p_WB, dtype=np.float64)
             q = np.asarray(q_WB, dtype=np.float64)

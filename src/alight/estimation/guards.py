@@ -74,7 +74,8 @@ def check_vector(v: Any, n: int, bound: float, what: str, where: str) -> FloatAr
     a = as_real_array(v, what, where)
     if a.shape != (n,):
         raise MeasurementError(f"{where}: {what} must have shape ({n},), got {a.shape}")
-    norm = float(np.sqrt(a @ a))
+    # the largest element first: a @ a of 1e300 would overflow (with a warning) before the test
+    norm = float(np.sqrt(a @ a)) if float(np.abs(a).max()) <= bound else math.inf
     if not (math.isfinite(norm) and norm <= bound):
         raise MeasurementError(f"{where}: {what} must be finite with norm <= {bound:g}, got {a.tolist()}")
     return a
@@ -100,10 +101,21 @@ def check_covariance(c: Any, n: int, where: str, what: str = "covariance") -> Fl
 
 def as_real_array(v: Any, what: str, where: str) -> FloatArray:
     """``v`` as a float array; :class:`MeasurementError` when it holds something else than reals."""
+    if np.iscomplexobj(v):  # numpy would drop the imaginary part with a warning
+        raise MeasurementError(f"{where}: {what} must be real, got {v!r:.80}")
     try:
         return np.asarray(v, dtype=np.float64)
     except (TypeError, ValueError):  # complex, ragged, None, strings
         raise MeasurementError(f"{where}: {what} must be an array of real numbers, got {v!r:.80}") from None
+
+
+def check_real_inputs(t: Any, arrays: tuple[Any, ...], where: str) -> float:
+    """:func:`check_time` of ``t``, and :class:`MeasurementError` when one of ``arrays`` (None allowed)
+    holds complex numbers, which numpy would cast to their real part with only a warning."""
+    for a in arrays:
+        if a is not None and np.iscomplexobj(a):
+            raise MeasurementError(f"{where}: inputs must be real, got {a!r:.80}")
+    return check_time(t, where)
 
 
 def check_clock(t: Any, now: float, where: str) -> float:
@@ -202,6 +214,7 @@ __all__ = [
     "check_clock",
     "check_covariance",
     "check_measurement",
+    "check_real_inputs",
     "check_time",
     "check_times",
     "check_vector",
