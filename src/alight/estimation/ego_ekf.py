@@ -40,11 +40,22 @@ from alight.estimation.guards import (
     GATE_SIGMA,
     MAX_POSITION_M,
     MAX_SPEED_MPS,
+    StampRun,
+    bounded_steps,
+    check_clock,
+    check_real_inputs,
     check_time,
+    check_times,
+    imu_plausible,
+    plausible_velocity,
 )
 from alight.numerics.linalg import chol_solve
 from alight.numerics.rotation import quat_exp, quat_log, quat_mul, quat_to_R
 from alight.types import GRAVITY_MPS2, EgoState, FloatArray
+
+IMU_RUN = 20
+"""IMU samples in a row, in order among themselves, that make :meth:`EgoEkf.predict_imu` believe a jump of
+the IMU clock beyond ``FUTURE_TOLERANCE_S`` (0.1 s of a 200 Hz IMU; :class:`~.guards.StampRun`)."""
 
 # status codes shared by the kernels of this subpackage
 OK = 0
@@ -302,10 +313,9 @@ def ego_predict_kernel(
     ``max_step`` are split, with the samples interpolated linearly. Returns a status code and changes
     nothing unless it is ``OK``.
     """
-    for i in range(6, 12):
-        if not math.isfinite(imu[i]):
-            return NOT_FINITE
-    n = max(1, int(math.ceil(dt / max_step - 1e-9)))
+    if not imu_plausible(imu, 6):  # alight.estimation.guards: finite and within an airframe's range
+        return NOT_FINITE
+    n = bounded_steps(dt, max_step)
     h = dt / n
     F = np.empty((15, 15))
     FP = np.empty((15, 15))
@@ -345,11 +355,12 @@ def ego_predict_many_kernel(
 ) -> int:
     """:func:`ego_predict_kernel` over the first ``n`` samples ``ts`` (s), ``fs``, ``ws`` ((n, 3) each)
     from the filter time ``t0``, in one compiled call. Returns -1 when all went through; else the index
-    ``k`` of the first non-finite sample, or ``-(k + 2)`` when sample ``k`` is earlier than the one before
-    (or than ``t0``, or not finite in time); the samples before it were applied."""
+    ``k`` of the first sample that is not finite or beyond an airframe's range, or ``-(k + 2)`` when sample
+    ``k`` is earlier than the one before (or than ``t0``), more than ``FUTURE_TOLERANCE_S`` after it, or
+    not finite in time; the samples before it were applied."""
     t = t0
     for k in range(n):
-        if not (ts[k] >= t):
+        if not (t <= ts[k] <= t + FUTURE_TOLERANCE_S):  # guards (left to predict_imu's rule); also NaN
             return -(k + 2)
         for i in range(3):
             imu[6 + i] = fs[k, i]
@@ -738,6 +749,8 @@ class EgoEkf:
         same as ``delta_xy``/``delta_z``). A restart after gated messages is the estimate's own drift
         being corrected, not a jump of the frame, and adds nothing."""
         self._consecutive_gated = 0
+        self._gated_from = (math.nan, np.zeros(3))
+        self._imu_run = StampRun(IMU_RUN)
         self.n_relocalizations = 0
         """Restarts at a pose the odometry announced as a jump of its frame (:meth:`relocalize`)."""
 
@@ -771,7 +784,8 @@ class EgoEkf:
         )
         if P.shape != (15, 15):
             raise EstimationError(f"covariance must have shape (15, 15), got {P.shape}")
-        if not all(np.isfinite(a).all() for a in (p, v, q, ba, bg, P)) or not math.isfinite(t):
+        t = check_time(t, "EgoEkf.initialize")
+        if not all(np.isfinite(a).all() for a in (p, v, q, ba, bg, P)):
             raise EstimationError("EgoEkf.initialize: inputs must be finite")
         nq = float(np.linalg.norm(q))
         if nq < 1e-6:
@@ -791,36 +805,64 @@ class EgoEkf:
     def predict_imu(self, t: float, f_B: FloatArray, w_B: FloatArray) -> None:
         """Propagate to the IMU sample at ``t`` (s): specific force ``f_B`` (m/s^2) and rate ``w_B``
         (rad/s), both (3,) in B. Samples must come in time order; one at the filter time only refreshes
-        the body rates."""
+        the body rates. A sample more than ``FUTURE_TOLERANCE_S`` after the filter time is refused
+        (:class:`alight.errors.MeasurementError`) unless ``IMU_RUN`` samples in a row, in order among
+        themselves, say the clock really jumped: then the gap is propagated in bounded steps."""
         if not self._initialized:
             raise EstimationError("EgoEkf.predict_imu called before initialize")
-        dt = t - self._t
-        if not (dt >= 0.0):  # also NaN
-            raise EstimationError(
-                f"EgoEkf.predict_imu: time {t} is before the filter time {self._t} or not finite"
-            )
+        try:
+            ordinary = 0.0 <= t - self._t <= FUTURE_TOLERANCE_S  # False on NaN
+        except (TypeError, ValueError):  # not a number, or an array
+            ordinary = False
+        if ordinary:
+            dt = t - self._t
+            if self._imu_run.times:
+                self._imu_run.clear()
+        else:  # the rare path, checked in full (before the first sample: a gap the odometry's hold judged)
+            dt = self._imu_gap(t)
+        if np.iscomplexobj(f_B) or np.iscomplexobj(w_B):
+            check_real_inputs(t, (f_B, w_B), "EgoEkf.predict_imu")  # raises
         try:
             self._imu[6:9] = f_B
             self._imu[9:12] = w_B
         except (ValueError, TypeError) as e:
-            raise EstimationError(f"EgoEkf.predict_imu: f_B and w_B must have shape (3,): {e}") from None
+            raise MeasurementError(f"EgoEkf.predict_imu: f_B and w_B must have shape (3,): {e}") from None
         if not self._has_imu:
             self._imu[0:6] = self._imu[6:12]
         status = ego_predict_kernel(self._x, self._P, self._imu, self._params, dt, self.config.max_step)
         if status != OK:
-            raise EstimationError(f"EgoEkf.predict_imu: non-finite IMU sample at t={t}")
+            raise MeasurementError(
+                f"EgoEkf.predict_imu: IMU sample at t={t} not finite or beyond an airframe's range"
+            )
         self._has_imu = True
         self._t = float(t)
         self._state_cache = None
+
+    def _imu_gap(self, t: float) -> float:
+        """The gap to an IMU sample outside ``[filter time, + FUTURE_TOLERANCE_S]``, or a refusal."""
+        t = check_time(t, "EgoEkf.predict_imu")
+        dt = t - self._t
+        if dt < 0.0:
+            raise EstimationError(f"EgoEkf.predict_imu: time {t} is before the filter time {self._t}")
+        if self._has_imu and not self._imu_run.add(t):
+            raise MeasurementError(
+                f"EgoEkf.predict_imu: time {t} is more than {FUTURE_TOLERANCE_S:g} s after the filter time "
+                f"{self._t}"
+            )
+        self._imu_run.clear()
+        return dt
 
     def predict_imu_many(
         self, ts: FloatArray, f_B: FloatArray, w_B: FloatArray, n: int | None = None
     ) -> None:
         """As ``n`` calls of :meth:`predict_imu` (same arithmetic) in one compiled call: times ``ts``
         (n,), specific forces ``f_B`` and rates ``w_B`` (n, 3). For drivers that buffer a 200 Hz IMU
-        stream and hand it over when the estimate is needed."""
+        stream and hand it over when the estimate is needed. From a sample :meth:`predict_imu` would
+        refuse, the rest go through it one by one, and the first refusal is raised at the end."""
         if not self._initialized:
             raise EstimationError("EgoEkf.predict_imu_many called before initialize")
+        if not (type(ts) is np.ndarray and ts.dtype == np.float64 and ts.ndim == 1):
+            ts = check_times(ts, "EgoEkf.predict_imu_many")
         n = len(ts) if n is None else int(n)
         if n == 0:
             return
@@ -849,6 +891,9 @@ class EgoEkf:
                 f"EgoEkf.predict_imu_many: n={n} samples need ts (>= n,), f_B and w_B (>= n, 3), got "
                 f"{np.shape(ts)}, {np.shape(f_B)}, {np.shape(w_B)}"
             )
+        check_real_inputs(0.0, (f_B, w_B), "EgoEkf.predict_imu_many")
+        f_B = np.asarray(f_B, dtype=np.float64)  # no copy for the drivers' arrays
+        w_B = np.asarray(w_B, dtype=np.float64)
         if not self._has_imu:
             self._imu[0:3] = f_B[0]
             self._imu[3:6] = w_B[0]
@@ -860,12 +905,29 @@ class EgoEkf:
             self._has_imu = True
             self._t = float(ts[done - 1])
             self._state_cache = None
+            self._imu_run.clear()
         if bad >= 0:
-            raise EstimationError(f"EgoEkf.predict_imu_many: non-finite IMU sample at t={ts[bad]}")
-        if bad < -1:
-            raise EstimationError(
-                f"EgoEkf.predict_imu_many: time {ts[done]} is before the filter time {self._t} or not finite"
+            raise MeasurementError(
+                f"EgoEkf.predict_imu_many: IMU sample at t={ts[bad]} not finite or beyond an airframe's range"
             )
+        if bad < -1:
+            self._one_by_one(ts[done:n], f_B[done:n], w_B[done:n])
+
+    def _one_by_one(self, ts: FloatArray, f_B: FloatArray, w_B: FloatArray) -> None:
+        """:meth:`predict_imu` on each sample from one the compiled loop refused by its time. Samples too
+        far in the future are refused and go on (a run of them is believed, :class:`~.guards.StampRun`),
+        the first such refusal raised after the last sample; any other refusal ends the call."""
+        first: EstimationError | None = None
+        for k in range(len(ts)):
+            if not ts[k] > self._t + FUTURE_TOLERANCE_S:  # before the filter time, or NaN: ends here
+                self.predict_imu(float(ts[k]), f_B[k], w_B[k])
+                continue
+            try:
+                self.predict_imu(float(ts[k]), f_B[k], w_B[k])
+            except MeasurementError as err:
+                first = err if first is None else first
+        if first is not None:
+            raise first
 
     def update_odometry(
         self,
@@ -886,6 +948,7 @@ class EgoEkf:
         with the last IMU sample held; one older by at most ``max_odometry_lag`` is moved forward; older
         ones are rejected and counted. Returns True when fused.
         """
+        t = check_real_inputs(t, (p_WB, q_WB, v_WB), "EgoEkf.update_odometry")  # guards: no None, "x", 1j
         if not self._initialized:
             raise EstimationError("EgoEkf.update_odometry called before initialize")
         if not math.isfinite(t):
@@ -992,12 +1055,21 @@ class EgoEkf:
             return False
         self.n_odometry_gated += 1
         self._consecutive_gated += 1
+        if self._consecutive_gated == 1:  # where the run of refused messages starts (for its velocity)
+            self._gated_from = (self._t, self._z[0:3].copy())
         if self._consecutive_gated < self.config.odometry_reset_after:
             return True
         # the estimate drifted away from every message: restart at the odometry's pose (its own drift
         # corrected, not a jump of the odometry's frame: nothing added to reset_delta_p_WB)
         q = self._z[3:7] / math.sqrt(float(self._z[3:7] @ self._z[3:7]))
-        self._restart(self._t, self._z[0:3].copy(), self._x[3:6].copy(), q)
+        # the estimate's velocity is judged wrong with its position (it carried it away): the message's
+        # own, or the refused messages' mean velocity, bounded by guards.plausible_velocity
+        if Rm.shape[0] == 9:
+            v = self._z[7:10].copy()
+        else:
+            t0, p0 = self._gated_from
+            v = (self._z[0:3] - p0) / (self._t - t0) if self._t > t0 else np.zeros(3)
+        self._restart(self._t, self._z[0:3].copy(), plausible_velocity(v), q)
         self.n_odometry_resets += 1
         return True
 
@@ -1021,14 +1093,18 @@ class EgoEkf:
         ``reset_counter`` went up): restart at its new pose at once, instead of refusing it as an outlier,
         and add the jump (the new position minus the estimate, propagated to ``t``) to
         ``reset_delta_p_WB``. Raises like :meth:`update_odometry` on a message that is not a pose."""
-        p = np.asarray(p_WB, dtype=np.float64)
-        q = np.asarray(q_WB, dtype=np.float64)
-        v = self._x[3:6].copy() if v_WB is None else np.asarray(v_WB, dtype=np.float64)
+        t = check_clock(t, self._t, "EgoEkf.relocalize")  # guards: within the tolerance of the IMU clock
+        check_real_inputs(t, (p_WB, q_WB, v_WB), "EgoEkf.relocalize")
+        try:
+            p = np.asarray(p_WB, dtype=np.float64)
+            q = np.asarray(q_WB, dtype=np.float64)
+            v = plausible_velocity(self._x[3:6]) if v_WB is None else np.asarray(v_WB, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise MeasurementError("EgoEkf.relocalize: p_WB, q_WB and v_WB must be real arrays") from None
         if not (p.shape == (3,) and q.shape == (4,) and v.shape == (3,)):
             raise MeasurementError("EgoEkf.relocalize: p_WB (3,), q_WB (4,) and v_WB (3,) expected")
-        if not (math.isfinite(t) and np.isfinite(p).all() and np.isfinite(q).all() and np.isfinite(v).all()):
+        if not (np.isfinite(p).all() and np.isfinite(q).all() and np.isfinite(v).all()):
             raise EstimationError(f"EgoEkf.relocalize: non-finite pose at t={t}")
-        check_time(t, "EgoEkf.relocalize")
         nq2 = float(q @ q)
         if not (0.25 <= nq2 <= 4.0) or float(p @ p) > MAX_POSITION_M**2 or float(v @ v) > MAX_SPEED_MPS**2:
             raise MeasurementError(f"EgoEkf.relocalize: not a pose at t={t}")

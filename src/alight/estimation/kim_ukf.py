@@ -83,11 +83,14 @@ from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.errors import ConfigError, EstimationError
 from alight.estimation.guards import (
     FUTURE_TOLERANCE_S,
-    MAX_POSITION_M,
+    MAX_HORIZON_S,
     MAX_TIME_S,
-    check_covariance,
+    StampRun,
+    as_real_array,
+    as_time,
+    check_measurement,
     check_time,
-    check_vector,
+    check_times,
 )
 from alight.estimation.sigma_points import (
     CubatureSigmaPoints,
@@ -591,6 +594,7 @@ class KimUkf:
         self._z_var = math.nan
         self._rho_prev = math.nan
         self._consecutive_rejections = 0
+        self._late_run = StampRun(self.config.reinit_after_rejections)
         self.n_updates = 0
         """Measurements fused (not counting initialisations)."""
         self.n_rejected = 0
@@ -631,6 +635,7 @@ class KimUkf:
         self._v_a = v_new.copy()
         self._has = True
         self._consecutive_rejections = 0
+        self._late_run.clear()
         self._confirmed_n += 1
         if self.config.turn_model:
             self.turn_rate.update(t, float(v_new[0] + x[2]), float(v_new[1] + x[3]))
@@ -650,23 +655,17 @@ class KimUkf:
     def update(self, measurement: PlatformMeasurement) -> bool:
         """Fuse a world-frame measurement (``t`` = capture time): ``z = p_anchor + [x, y]`` for the
         horizontal position, the scalar height filter for z. True when used."""
-        t = float(measurement.t)
-        p = np.asarray(measurement.p_WP, dtype=np.float64)
-        cov = np.asarray(measurement.cov_p_WP, dtype=np.float64)
+        t, p, cov = check_measurement(measurement, "KimUkf.update")  # alight.estimation.guards
         if p.shape != (3,) or cov.shape != (3, 3) or not (np.isfinite(p).all() and np.isfinite(cov).all()):
             raise EstimationError("KimUkf.update: a finite p_WP (3,) and cov_p_WP (3, 3) are needed")
         if not math.isfinite(t):
             raise EstimationError(f"KimUkf.update: non-finite time {t}")
         # bounds of alight.estimation.guards: time, position, covariance; a measurement from the future
         # (after the clock given to predict, beyond the tolerance) is refused like one out of order
-        check_time(t, "KimUkf.update")
-        check_vector(p, 3, MAX_POSITION_M, "p_WP", "KimUkf.update")
-        check_covariance(cov, 3, "KimUkf.update", "cov_p_WP")
         if t > self._t_now + FUTURE_TOLERANCE_S:
             self.n_invalid += 1
             return False
-        if self._has and t < self._t:
-            self.n_out_of_order += 1
+        if self._has and t < self._t and not self._out_of_order(t):
             return False
         c = self.config
         if not self._has:
@@ -688,6 +687,23 @@ class KimUkf:
         self._z_predict_update(dt, p[2], cov[2, 2])
         self._commit(t, x, P, p_new, v_new)
         self.n_updates += 1
+        return True
+
+    def _out_of_order(self, t: float) -> bool:
+        """Count a measurement captured before the filter time. True when it completes a run of
+        ``reinit_after_rejections`` far before it (by more than ``FUTURE_TOLERANCE_S``), in order among
+        themselves (:class:`alight.estimation.guards.StampRun`): the filter's time came from a
+        measurement stamped in the future, and the track is dropped, to restart from this one (the
+        recovery rule of ``PlatformEkf``; nothing of the wrong track is kept)."""
+        self.n_out_of_order += 1
+        if t >= self._t - FUTURE_TOLERANCE_S or not self._late_run.add(t):
+            return False
+        self.n_reinitializations += 1
+        self._has = False
+        self._confirmed_n = 0
+        self._p_a = np.zeros(3)
+        self._v_a = np.zeros(3)
+        self._late_run.clear()
         return True
 
     def _init_world(self, t: float, p: FloatArray, cov: FloatArray, p_a: FloatArray, v_a: FloatArray) -> None:
@@ -757,16 +773,15 @@ class KimUkf:
         deck, a sigma point without an image or a gated innovation return False and leave the state
         unchanged."""
         self._require_camera()
-        t = float(t)
-        z = np.asarray(px, dtype=np.float64).ravel()
+        t = as_time(t, "KimUkf.update_pixel")  # guards: not finite is counted below, not a number refused
+        z = as_real_array(px, "px", "KimUkf.update_pixel").ravel()
         if z.shape != (2,) or not np.isfinite(z).all() or not math.isfinite(t):
             self.n_invalid += 1
             return False
         if abs(t) > MAX_TIME_S or t > self._t_now + FUTURE_TOLERANCE_S:  # alight.estimation.guards
             self.n_invalid += 1
             return False
-        if self._has and t < self._t:
-            self.n_out_of_order += 1
+        if self._has and t < self._t and not self._out_of_order(t):
             return False
         p_WC, R_WC, v_WC = camera_state_W(ego, self.mount)
         H = float(p_WC[2] - self.config.deck_height)
@@ -905,8 +920,10 @@ class KimUkf:
         """The predicted pixel of the target at ``t`` (s) for the ego state then, and a gate radius (px):
         ``n_sigma`` times the square root of the innovation covariance's largest eigenvalue. For the
         detector's gating (:meth:`alight.perception.color_filter.RedTargetDetector.set_prediction`). None
-        before the first measurement or when the target has no image."""
-        if not self._has or self.camera is None or t < self._t:
+        before the first measurement, when the target has no image or when the track is older than
+        ``MAX_HORIZON_S`` at ``t`` (:mod:`alight.estimation.guards`; a time that is not one is refused)."""
+        t = check_time(t, "KimUkf.predict_pixel")
+        if not self._has or self.camera is None or not (0.0 <= t - self._t <= MAX_HORIZON_S):
             return None
         p_WC, R_WC, v_WC = camera_state_W(ego, self.mount)
         H = float(p_WC[2] - self.config.deck_height)
@@ -1011,14 +1028,13 @@ class KimUkf:
         """Positions (k, 3), velocities (k, 3), accelerations (k, 3) and headings (k,) at the absolute
         ``times`` (k,) (s) from the last measurement: along the platform's turn (``turn_model``), else at
         constant velocity (zero acceleration)."""
-        ts = np.asarray(times, dtype=np.float64)
-        if ts.ndim != 1:
-            raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
+        ts = check_times(times, "KimUkf.predict_ahead")
         p0, v = self._world_pv(self._t)
         k = ts.shape[0]
+        dts = np.clip(ts - self._t, -MAX_HORIZON_S, MAX_HORIZON_S)  # as PlatformEkf: no overflow
         if self.config.turn_model and self.turn_rate.rate != 0.0:
-            return turn_predict(p0, v, self.turn_rate.rate, ts - self._t)
-        p = p0 + (ts - self._t)[:, None] * v
+            return turn_predict(p0, v, self.turn_rate.rate, dts)
+        p = p0 + dts[:, None] * v
         return p, np.tile(v, (k, 1)), np.zeros((k, 3)), np.full(k, math.atan2(v[1], v[0]))
 
     def diagnostics(self) -> dict[str, Any]:

@@ -43,6 +43,9 @@ more than ``FUTURE_TOLERANCE_S`` before the filter's time, the filter's time was
 restarts from them (``n_reinitializations``). :meth:`PlatformEkf.state` integrates at most
 ``MAX_HORIZON_S`` past the last measurement (bounded work for any query time); further out it reports the
 estimate at that horizon with the horizontal variance grown by ``(init_speed_prior_std * excess)^2``.
+:meth:`PlatformEkf.update_telemetry` applies the same rules (and a velocity below ``MAX_SPEED_MPS``; a fix
+more than ``FUTURE_TOLERANCE_S`` after the clock is refused), and every propagation takes at most
+``MAX_STEPS`` steps whatever the gap.
 """
 
 from __future__ import annotations
@@ -61,8 +64,13 @@ from alight.estimation.guards import (
     FUTURE_TOLERANCE_S,
     MAX_HORIZON_S,
     MAX_POSITION_M,
+    MAX_SPEED_MPS,
+    bounded_steps,
+    check_clock,
     check_covariance,
+    check_measurement,
     check_time,
+    check_times,
     check_vector,
 )
 from alight.estimation.telemetry import (
@@ -236,7 +244,7 @@ def platform_propagate(
     """``xo, Po`` = ``x, P`` propagated by ``dt`` (s, may be negative: the mean goes back exactly and the
     process noise of ``|dt|`` is still added) in steps of at most ``max_step``."""
     n = x.shape[0]
-    k = max(1, int(math.ceil(abs(dt) / max_step - 1e-9)))
+    k = bounded_steps(dt, max_step)  # alight.estimation.guards: bounded work for any gap
     h = dt / k
     F = np.empty((n, n))
     Q = np.empty((n, n))
@@ -738,9 +746,7 @@ class PlatformEkf:
     def update(self, measurement: PlatformMeasurement) -> bool:
         """Fuse a measurement (its ``t`` is the capture time). Returns True when it was used (fused, or
         buffered for initialisation), False when rejected (out of order, or gated out)."""
-        t = float(measurement.t)
-        p = np.asarray(measurement.p_WP, dtype=np.float64)
-        cov = np.asarray(measurement.cov_p_WP, dtype=np.float64)
+        t, p, cov = check_measurement(measurement, "PlatformEkf.update")  # alight.estimation.guards
         yaw = measurement.yaw
         if p.shape != (3,) or cov.shape != (3, 3):
             raise EstimationError(
@@ -748,9 +754,6 @@ class PlatformEkf:
             )
         if not (math.isfinite(t) and math.isfinite(float(p.sum())) and math.isfinite(float(cov.sum()))):
             raise EstimationError(f"PlatformEkf.update: non-finite measurement at t={t}")
-        check_time(t, "PlatformEkf.update")
-        check_vector(p, 3, MAX_POSITION_M, "p_WP", "PlatformEkf.update")
-        check_covariance(cov, 3, "PlatformEkf.update", "cov_p_WP")
         use_yaw = self.config.use_yaw and yaw is not None
         if use_yaw and yaw is not None:  # (use_yaw implies it; said again for the type checker)
             yaw_var = measurement.yaw_var if measurement.yaw_var is not None else self.config.yaw_std**2
@@ -901,18 +904,12 @@ class PlatformEkf:
         measurement unless the filter is already more certain than the bias is known
         (:func:`telemetry_adds_information`). A gated-out fix is skipped, never counted toward
         re-initialisation: the camera, not the telemetry, decides that the track is lost."""
-        p = np.asarray(p_WP, dtype=np.float64)
-        v = np.asarray(v_WP, dtype=np.float64)
-        c = np.asarray(cov, dtype=np.float64)
-        if p.shape != (3,) or v.shape != (3,) or c.shape != (3, 3):
-            raise EstimationError(
-                "update_telemetry: p_WP (3,), v_WP (3,), cov (3, 3) expected, "
-                f"got {p.shape}, {v.shape}, {c.shape}"
-            )
-        if not (
-            math.isfinite(t_stamp) and np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(c).all()
-        ):
-            raise EstimationError(f"update_telemetry: non-finite fix at t={t_stamp}")
+        # the camera path's rules (alight.estimation.guards), and no fix from beyond the clock's tolerance
+        where = "PlatformEkf.update_telemetry"
+        t_stamp = check_clock(t_stamp, self._t_now, where)
+        p = check_vector(p_WP, 3, MAX_POSITION_M, "p_WP", where)
+        v = check_vector(v_WP, 3, MAX_SPEED_MPS, "v_WP", where)
+        c = check_covariance(cov, 3, where, "cov")
         tc = self.telemetry.config
         self.telemetry.add_fix(t_stamp, p, v, c)
         t_fuse = t_stamp - tc.time_guard_s
@@ -1136,9 +1133,7 @@ class PlatformEkf:
         """Platform at the absolute times ``times`` (k,) (s) by the closed-form model (eq. 2), from the
         last measurement: positions (k, 3) m, velocities (k, 3) m/s, accelerations (k, 3) m/s^2,
         headings (k,) rad. Before initialisation: stationary at the last measurement."""
-        ts = np.asarray(times, dtype=np.float64)
-        if ts.ndim != 1:
-            raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
+        ts = check_times(times, "PlatformEkf.predict_ahead")
         last = self._last
         if last is None:
             raise EstimationError("PlatformEkf.predict_ahead: no measurement yet")
@@ -1153,9 +1148,7 @@ class PlatformEkf:
         the prediction's uncertainty."""
         if not self._initialized:
             raise EstimationError("PlatformEkf.position_covariance_ahead: not initialised")
-        ts = np.asarray(times, dtype=np.float64)
-        if ts.ndim != 1 or not np.isfinite(ts).all():
-            raise EstimationError("position_covariance_ahead: times must be a finite 1-D array")
+        ts = check_times(times, "PlatformEkf.position_covariance_ahead")
         dts = ts - self._t
         out = np.empty((ts.shape[0], 3, 3))
         _position_covariance_ahead(self._x, self._P, dts, np.argsort(dts), self._q, self.config.max_step, out)

@@ -88,7 +88,9 @@ from alight.estimation.guards import (
     GATE_SIGMA,
     MAX_POSITION_M,
     check_covariance,
+    check_measurement,
     check_time,
+    check_times,
     check_vector,
 )
 from alight.estimation.platform_velocity import PlatformVelocityConfig, PlatformVelocityEstimator
@@ -335,6 +337,7 @@ class SduKalmanFilter:
     def update(self, measurement: PlatformMeasurement) -> bool:
         """Eq. (2) with a measurement (``measurement.t`` its capture time). True when fused; False when
         it was captured before the kept history (``history_s``)."""
+        check_measurement(measurement, "SduKalmanFilter.update")  # alight.estimation.guards
         c = self.config
         t_c = float(measurement.t)
         p = measurement.p_WP.tolist()
@@ -544,9 +547,7 @@ class SduKalmanFilter:
         """Positions (k, 3) m, velocities (k, 3) m/s, accelerations (k, 3) m/s^2 and headings (k,) rad at
         the absolute ``times`` (k,) (s): from the filter's time along the platform's turn (``turn_model``),
         else at constant velocity (zero acceleration)."""
-        ts = np.asarray(times, dtype=np.float64)
-        if ts.ndim != 1:
-            raise EstimationError(f"predict_ahead: times must be 1-D, got shape {ts.shape}")
+        ts = check_times(times, "SduKalmanFilter.predict_ahead")  # alight.estimation.guards
         if not self._has:
             raise EstimationError("SduKalmanFilter.predict_ahead: no measurement yet")
         px, py = self._pad_at_filter_time()
