@@ -71,3 +71,14 @@ def test_round_trips_and_consistency() -> None:
 def test_bad_quaternion_is_refused(bad: list[float]) -> None:
     with pytest.raises(ValueError, match="quaternion"):
         frames.mavlink_to_q_WB(np.array(bad))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_attitude_angles_round_trip_through_the_mavlink_quaternion(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        roll, yaw = rng.uniform(-math.pi + 1e-6, math.pi - 1e-6, 2)
+        pitch = rng.uniform(-0.5 * math.pi + 1e-3, 0.5 * math.pi - 1e-3)
+        q_wxyz = frames.q_WB_to_mavlink(frames.euler_ned_frd_to_q_WB(roll, pitch, yaw))
+        back = frames.mavlink_q_to_euler_ned_frd(q_wxyz)
+        assert np.allclose(back, (roll, pitch, yaw), atol=1e-9)

@@ -117,6 +117,17 @@ def euler_ned_frd_to_q_WB(roll: float, pitch: float, yaw: float) -> FloatArray:
     return mavlink_to_q_WB(q_ned)
 
 
+def mavlink_q_to_euler_ned_frd(q: FloatArray) -> tuple[float, float, float]:
+    """A MAVLink quaternion ``(w, x, y, z)`` of the FRD body in NED -> ATTITUDE's roll, pitch, yaw (ZYX
+    intrinsic Euler angles, rad): the inverse of :func:`euler_ned_frd_to_q_WB`'s angles (pitch clipped to
+    +-pi/2 where rounding takes the sine past 1)."""
+    w, x, y, z = (float(c) for c in q)
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
 def cov_enu_to_ned(P: FloatArray) -> FloatArray:
     """A 3x3 world covariance, ENU <-> NED: ``M P M^T``."""
     out: FloatArray = M_ENU_NED @ np.asarray(P, dtype=np.float64) @ M_ENU_NED.T

@@ -416,15 +416,6 @@ class Outbox:
         self.buf.clear()
 
 
-def euler_of_mavlink_q(q: FloatArray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad, ZYX, NED/FRD: ATTITUDE's angles) of a MAVLink quaternion (w, x, y, z)."""
-    w, x, y, z = (float(c) for c in q)
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
-
-
 class EmulatedAutopilot:
     """The MAVLink endpoint and the autopilot's logic around a :class:`~alight.sim.world.World`."""
 
@@ -1105,7 +1096,7 @@ class EmulatedAutopilot:
             q = frames.q_WB_to_mavlink(x[SL_Q])
             rates = frames.flu_to_frd(x[SL_W])
             mav.attitude_quaternion_send(t_ms, *q, *rates)
-            mav.attitude_send(t_ms, *euler_of_mavlink_q(q), *rates)
+            mav.attitude_send(t_ms, *frames.mavlink_q_to_euler_ned_frd(q), *rates)
         odo = w.odometry_message() if k % 5 == 0 else None  # 40 Hz, odometry faults applied
         if odo is not None:
             p, v = frames.enu_to_ned(odo.p_WB), frames.enu_to_ned(odo.v_WB)
