@@ -20,6 +20,7 @@ _MODELS = {
     "numerics",
     "blockspec",
     "settings",
+    "yaml_io",
 }
 _STAGES = {"perception", "estimation", "planning", "control", "mission", "energy"}
 
@@ -39,7 +40,7 @@ ALLOWED: dict[str, set[str]] = {
     # shared numerics (rotations and angles, Cholesky, polynomial roots, DLT/RANSAC, run labelling): a
     # leaf below every stage and below the messages
     "numerics": {"errors"},
-    "cameras": {"types", "errors", "numerics", "blockspec"},
+    "cameras": {"types", "errors", "numerics", "blockspec", "yaml_io"},
     "pads": {"types", "errors", "blockspec"},
     # a leaf: the energy and QoS models and policies, no pipeline stage, no simulator
     "energy": {"types", "errors", "yaml_io"},
@@ -49,7 +50,7 @@ ALLOWED: dict[str, set[str]] = {
     "control": {"types", "errors", "airframe", "numerics", "blockspec"},
     "mission": _MODELS | {"perception", "estimation", "planning", "control", "energy"},
     # the fault models take their scenario sections (for annotations only: no runtime import)
-    "sim": {"types", "errors", "airframe", "cameras", "pads", "numerics", "scenario", "settings"},
+    "sim": {"types", "errors", "airframe", "cameras", "pads", "numerics", "scenario", "settings", "yaml_io"},
     # the world of one mission (sim/world.py) and its fused 1 kHz loop (sim/physics.py): the simulator's
     # models, and the autopilot's body-rate loop and mixer (control.rate, control.mixer) that the vehicle
     # runs inside the physics; the flying side's composition only through its VehicleSetup Protocol

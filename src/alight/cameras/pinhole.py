@@ -28,8 +28,9 @@ import cv2
 import numba
 import numpy as np
 
-from alight.errors import InputError
+from alight.errors import ConfigError, InputError
 from alight.types import FloatArray
+from alight.yaml_io import load_yaml_text
 
 _SUPPORTED_DIST_LEN = (0, 4, 5, 8, 12)
 
@@ -281,7 +282,6 @@ def _ros_camera_info(path: str) -> tuple[FloatArray, FloatArray, int, int] | Non
     """(K, dist, width, height) of a ROS ``camera_info`` YAML (a file with ``distortion_model``), None for
     any other file (OpenCV's ``%YAML:1.0`` FileStorage files). Raises InputError for a model it cannot
     read as OpenCV's radial-tangential one."""
-    import yaml
 
     if not path.lower().endswith((".yaml", ".yml")):
         return None
@@ -293,9 +293,9 @@ def _ros_camera_info(path: str) -> tuple[FloatArray, FloatArray, int, int] | Non
     if text.lstrip().startswith("%YAML:"):
         return None  # OpenCV FileStorage syntax, not plain YAML
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError:
-        return None
+        data = load_yaml_text(text, path, "camera", allow_empty=True)
+    except ConfigError:
+        return None  # not YAML at all: not a camera_info file
     if not isinstance(data, dict) or "distortion_model" not in data:
         return None
     model = data["distortion_model"]

@@ -36,8 +36,6 @@ from functools import cache
 from importlib import resources
 from typing import Any
 
-import yaml
-
 from alight.blockspec import BlockSpec, ResolveContext
 from alight.cameras import CAMERAS, CameraLoad, CameraModel, MountedCamera
 from alight.cameras.pinhole import CameraMount
@@ -46,6 +44,7 @@ from alight.estimation import PLATFORM_ESTIMATORS
 from alight.pads import PADS
 from alight.perception import DETECTORS, GEOLOCATORS
 from alight.planning import PLANNERS
+from alight.yaml_io import load_yaml_text
 
 STAGES = ("camera", "pad", "detector", "geolocator", "platform_estimator", "controller", "planner")
 """The stages a ``blocks:`` section names, in data-flow order."""
@@ -110,7 +109,7 @@ def preset_data(name: str) -> Mapping[str, Any]:
     if name not in preset_names():
         raise ValueError(f"preset: unknown preset '{name}', expected one of {list(preset_names())}")
     text = resources.files("alight.mission").joinpath("preset_data", f"{name}.yaml").read_text("utf-8")
-    data = yaml.safe_load(text)
+    data = load_yaml_text(text, f"preset {name}", "preset")
     return data  # type: ignore[no-any-return]
 
 

@@ -27,10 +27,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from alight.errors import ConfigError
+from alight.yaml_io import read_yaml_file
 
 __all__ = ["UNITS", "Vessel", "load_vessel", "packaged_vessels", "read_vessel_file"]
 
@@ -155,10 +155,7 @@ def read_vessel_file(path: str | Path) -> Vessel:
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"vessel {p}: no such file")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as err:
-        raise ConfigError(f"vessel {p}: not valid YAML: {str(err).splitlines()[0]}") from None
+    data, _ = read_yaml_file(p, "vessel", source=f"vessel {p}")
     if not isinstance(data, dict):
         raise ConfigError(f"vessel {p}: expected a mapping of vessel keys, got {type(data).__name__}")
     try:
