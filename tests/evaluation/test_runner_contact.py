@@ -10,8 +10,7 @@ import pytest
 
 import alight
 from alight.evaluation.runner import run_mission
-from alight.mission.pipeline import Pipeline
-from alight.mission.touchdown_detector import TouchdownState
+from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
 from alight.scenario import scenario_from_dict
 from alight.types import Command
 
@@ -46,18 +45,18 @@ def test_thrust_kept_after_contact_lifts_off_and_the_bounce_is_counted(
 ) -> None:
     """A faulty touchdown: on the first ground contact the vehicle commands 1.3 hover thrust for 0.4 s
     (as a vehicle without a land detector would keep flying its descent reference) and lifts off."""
-    original = Pipeline._touchdown_step
+    original = TouchdownDetector.command
     kick: dict[str, float] = {}
 
-    def faulty(self: Pipeline, t: float, ego, target, cmd: Command) -> Command:  # type: ignore[no-untyped-def]
-        if self.touchdown.state is TouchdownState.GROUND_CONTACT and "t" not in kick:
+    def faulty(self: TouchdownDetector, t: float, ego, target, range_raw_m, cmd: Command) -> Command:  # type: ignore[no-untyped-def]
+        if self.state is TouchdownState.GROUND_CONTACT and "t" not in kick:
             kick["t"] = t
         if "t" in kick and t - kick["t"] < 0.4:
-            self.touchdown.reset()
+            self.reset()
             return Command(t, 1.3 * 9.81, cmd.w_WB_B_cmd)
-        return original(self, t, ego, target, cmd)
+        return original(self, t, ego, target, range_raw_m, cmd)
 
-    monkeypatch.setattr(Pipeline, "_touchdown_step", faulty)
+    monkeypatch.setattr(TouchdownDetector, "command", faulty)
     r = run_mission(scenario_from_dict(BASE), record=False).result
     assert "t" in kick
     assert r["bounces"] >= 1

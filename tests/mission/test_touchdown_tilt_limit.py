@@ -1,5 +1,6 @@
 """The touchdown tilt limit (``mission.land_touchdown_max_tilt_rad``, PX4's ``MPC_TILTMAX_LND``): in a
-committed descent with the feet close to the deck, the pipeline limits the controller's tilt."""
+committed descent with the feet close to the deck, the mission limits the controller's tilt (the pipeline
+sets the limit on it)."""
 
 from __future__ import annotations
 
@@ -26,14 +27,18 @@ def _pipeline(preset: str, **mission: float):  # type: ignore[no-untyped-def]
 
 
 def _limits_after(pipeline, committed: bool, readings: list[float | None], mode: Mode = Mode.LAND) -> list:  # type: ignore[no-untyped-def]
-    """The tilt limits the pipeline sets on the controller while the range finder reads ``readings``."""
-    calls: list[float | None] = []
-    pipeline._set_tilt_limit = calls.append
+    """The tilt limits the mission asks of the controller while the range finder reads ``readings``, each
+    one where it changes (as the pipeline sets them)."""
+    changes: list[float | None] = []
+    current: float | None = None
     pipeline.mission._committed_since = 1.0 if committed else None
     for k, r in enumerate(readings):
         pipeline.on_range(0.01 * k, r)
-        pipeline._limit_tilt_near_ground(mode, LEVEL)
-    return calls
+        limit = pipeline.mission.tilt_limit_rad(mode, LEVEL, pipeline.range_raw_m)
+        if limit != current:
+            changes.append(limit)
+            current = limit
+    return changes
 
 
 def test_the_limit_applies_committed_and_close_only_and_is_lifted_again() -> None:

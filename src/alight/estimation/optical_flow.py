@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from alight.types import FloatArray, quat_to_rotmat
+from alight.types import EgoState, FloatArray, quat_to_rotmat
 
 MIN_LEVEL_COSINE = 0.5
 """Below this cosine of the tilt (60 deg) the flow says too little about the horizontal: no estimate."""
@@ -70,3 +70,58 @@ def module_velocity_W(
         vy + float(R[1, 0] * cx + R[1, 1] * cy + R[1, 2] * cz),
         vz + float(R[2, 0] * cx + R[2, 1] * cy + R[2, 2] * cz),
     )
+
+
+FLOW_MAX_AGE_S = 0.1
+"""An optical-flow sample older than this (s) is not read (a module at 50 Hz gives five in that time)."""
+
+
+class DeckFlow:
+    """The surface under the feet as the latest optical-flow sample measures it: the feet's horizontal
+    velocity across it (``slip_W``) and so its own horizontal velocity (``velocity_W``), both (2,) in W
+    (m/s), None before a sample (a vehicle without a module); read only while younger than
+    :data:`FLOW_MAX_AGE_S`.
+
+    ``origin_B``: where the module sits in B (m), as PX4's ``EKF2_OF_POS_X/Y/Z`` give it; the module's
+    velocity is the body's plus the lever arm's, w x r."""
+
+    def __init__(self, origin_B: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        self.origin_B = (float(origin_B[0]), float(origin_B[1]), float(origin_B[2]))
+        self.slip_W: FloatArray | None = None
+        self.velocity_W: FloatArray | None = None
+        """The module's velocity (the ego estimate's, plus the lever arm's) less the slip."""
+        self.t = -math.inf
+        """Time of the sample (s)."""
+
+    def update(
+        self, t: float, flow_B_rad_s: FloatArray, distance_m: float, ego: EgoState, v_z_WP: float
+    ) -> None:
+        """A sample at ``t`` (:meth:`alight.mission.pipeline.Pipeline.on_flow`) with the ego estimate's body
+        rates, attitude and velocity, and the platform estimate's vertical speed ``v_z_WP`` (m/s; 0
+        without one): the descent rate over the deck is the module's vertical speed less it. A sample
+        that is not finite, from a non-positive distance, stamped in the future or taken tilted past
+        60 deg is dropped."""
+        if not (math.isfinite(t) and t <= ego.t + FLOW_MAX_AGE_S):
+            return  # a sample from the future (a clock gone wrong) is not read
+        v_S_W = module_velocity_W(ego.v_WB, ego.q_WB, ego.w_WB_B, self.origin_B)
+        v_rel_z = float(v_S_W[2]) - v_z_WP
+        slip = horizontal_slip_W(flow_B_rad_s, distance_m, ego.w_WB_B, ego.q_WB, v_rel_z)
+        if slip is None:
+            return
+        self.slip_W = slip
+        self.velocity_W = np.array([float(v_S_W[0]) - slip[0], float(v_S_W[1]) - slip[1]])
+        self.t = t
+
+    def slip_mps(self, t: float) -> float | None:
+        """The feet's horizontal speed across the surface (m/s) from a sample of the last
+        :data:`FLOW_MAX_AGE_S`; None without one."""
+        if self.slip_W is None or t - self.t > FLOW_MAX_AGE_S:
+            return None
+        return math.hypot(float(self.slip_W[0]), float(self.slip_W[1]))
+
+    def velocity_W_at(self, t: float) -> FloatArray | None:
+        """The surface's horizontal velocity (m/s, (2,) in W) from a sample of the last
+        :data:`FLOW_MAX_AGE_S`; None without one."""
+        if self.velocity_W is None or t - self.t > FLOW_MAX_AGE_S:
+            return None
+        return self.velocity_W

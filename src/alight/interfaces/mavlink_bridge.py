@@ -416,7 +416,7 @@ class MavlinkBridge:
             self.stats.bad("DISTANCE_SENSOR")
             return
         self.stats.ok("DISTANCE_SENSOR")
-        if self.pipeline.ego_estimator.initialized:
+        if self.pipeline.ego_initialized:
             self.pipeline.on_range(t, distance_sensor_range_m(msg))
 
     def _on_optical_flow_rad(self, msg: Any) -> None:
@@ -426,7 +426,7 @@ class MavlinkBridge:
             self.stats.bad("OPTICAL_FLOW_RAD")
             return
         self.stats.ok("OPTICAL_FLOW_RAD")
-        if self.pipeline.ego_estimator.initialized:
+        if self.pipeline.ego_initialized:
             self.pipeline.on_flow(t, flow, float(msg.distance))
 
     def _on_extended_sys_state(self, msg: Any) -> None:
@@ -494,7 +494,7 @@ class MavlinkBridge:
         self.stats.ok("frame")
         self._frame_t = t
         self.frame_times.append(t)
-        if not self.pipeline.ego_estimator.initialized:
+        if not self.pipeline.ego_initialized:
             return
         self._feed(self.pipeline.on_image, t_cap, image)
         if self.config.mode == "landing-target" and self.phase in (Phase.SEARCH, Phase.PRECLAND):
@@ -562,7 +562,7 @@ class MavlinkBridge:
         if self.phase in (Phase.LINK_LOST, Phase.DONE, Phase.RELEASED) or self.link_lost():
             return
         pipe = self.pipeline
-        if not pipe.ego_estimator.initialized or self.target_sys is None:
+        if not pipe.ego_initialized or self.target_sys is None:
             return
         ego = pipe.ego()
         cfg = self.config

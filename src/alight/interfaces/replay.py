@@ -114,7 +114,7 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
 
     def run_ticks(until: float) -> None:
         nonlocal tick
-        if not pipeline.ego_estimator.initialized:
+        if not pipeline.ego_initialized:
             return
         if tick is None or until - tick * CONTROL_DT > MAX_GAP_S:
             # start, or a gap in the recording: the Pipeline's clock jumps over it instead of ticking
@@ -163,10 +163,10 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         elif isinstance(s, ImuSample):
             pipeline.on_imu(s.t, s.f_B, s.w_B)
         elif isinstance(s, RangeSample):
-            if pipeline.ego_estimator.initialized:  # as the runner: ranges once the ego state is known
+            if pipeline.ego_initialized:  # as the runner: ranges once the ego state is known
                 pipeline.on_range(s.t, s.range_m)
         elif isinstance(s, ImageSample):
-            if pipeline.detector is None or not pipeline.ego_estimator.initialized:
+            if pipeline.detector is None or not pipeline.ego_initialized:
                 return 1
             observations, measurements = pipeline.on_image(s.t_capture, s.image)
             frames.append((s.t_capture, observations))
@@ -197,7 +197,7 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
 
     if t_first is None:
         raise ReplayError(f"{rec.path}: no messages on the mapped topics")
-    if not pipeline.ego_estimator.initialized:
+    if not pipeline.ego_initialized:
         raise ReplayError(
             f"{rec.path}: the ego state never started: no message on the odometry topic "
             f"({rec.topics.get(Stream.ODOMETRY.value, 'none mapped')})"

@@ -15,7 +15,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, cast, runtime_checkable
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,11 +24,12 @@ from alight.control import TiltLimited
 from alight.energy import QosEnergyModel
 from alight.estimation import EgoFed, PixelMeasured, PositionResetting, TelemetryFusing
 from alight.estimation.ego_ekf import EgoEkf
-from alight.estimation.optical_flow import horizontal_slip_W, module_velocity_W
+from alight.estimation.optical_flow import DeckFlow
 from alight.mission.guidance import Guidance
+from alight.mission.range_filter import RangeFilter
 from alight.mission.state_machine import FailsafeEvent, Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
-from alight.perception import FrameGate, ModeAware, PixelGated, RangeAware, TiltAware
+from alight.perception import ComputeMetered, FrameGate, ModeAware, PixelGated, RangeAware, TiltAware
 from alight.perception.geolocation import pad_centre_pixel
 from alight.types import (
     PIPELINE_BLOCKS,
@@ -49,22 +50,9 @@ if TYPE_CHECKING:  # the Protocols, for annotations only
     from alight.perception import Detector, Geolocator
 
 _ZERO3 = np.zeros(3)
-FLOW_MAX_AGE_S = 0.1
-"""An optical-flow sample older than this (s) is not read (a module at 50 Hz gives five in that time)."""
 FINAL_DESCENT_PHASES = ("descend", "done")
 """The final action's phases that descend to a touchdown: the land detector runs, and touching the ground
 is the descent's end."""
-
-
-@runtime_checkable
-class ComputeMetered(Protocol):
-    """A detector that meters its own compute: the frames it processed and their energy under a
-    quality-of-service energy model (``perception/qos_detector.py``)."""
-
-    @property
-    def frames_processed(self) -> int: ...
-
-    def energy_J(self, model: QosEnergyModel, duration_s: float = 0.0) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -221,7 +209,8 @@ class Pipeline:
         self.ego_estimator = ego_estimator
         # an estimator that restarts at a jumped odometry pose reports the jumps to hand on one frame
         self._resets_position = isinstance(ego_estimator, PositionResetting)
-        self.flow_origin_B = (float(flow_origin_B[0]), float(flow_origin_B[1]), float(flow_origin_B[2]))
+        self.deck_flow = DeckFlow(flow_origin_B)
+        """The surface under the feet as the optical-flow module measures it (:meth:`on_flow`)."""
         self.detector = detector
         self.geolocator = geolocator
         self.platform_estimator = platform_estimator
@@ -254,25 +243,15 @@ class Pipeline:
         self._will_process: Callable[[float], bool] | None = (
             detector.will_process if isinstance(detector, FrameGate) else None
         )
-        self._z_takeoff: float | None = None  # the estimated height where the take-off started (m)
         self._tilt_limit: float | None = None  # the tilt limit set on the controller now (rad)
         self.stats = PipelineStats()
         self.status = MissionStatus(Mode.IDLE, False, "", 0.0)
+        self.ranges = RangeFilter()
+        """The range finder's last readings (:meth:`on_range`); ``range_m``, ``range_low_m`` and
+        ``range_raw_m`` are its ``high_m``, ``low_m`` and ``raw_m``."""
         self.range_m: float | None = None
         self.range_low_m: float | None = None
-        """The smallest of the last three valid range readings (None unless all three are valid): what
-        the mission's ground check reads, so that one spurious long return cannot trigger it."""
         self.range_raw_m: float | None = None
-        """The latest reading as the sensor reported it (``-inf``: closer than its minimum range)."""
-        self._ranges: list[float | None] = []
-        self.deck_slip_W: FloatArray | None = None
-        """The feet's horizontal velocity relative to the surface under them (m/s, (2,) in W), from the
-        last optical-flow sample; None before one (a vehicle without a module)."""
-        self.deck_velocity_W: FloatArray | None = None
-        """The horizontal velocity of the surface under the feet (m/s, (2,) in W) from the same sample:
-        the module's velocity (the ego estimate's, plus the lever arm's w x r) less the slip."""
-        self.deck_slip_t = -math.inf
-        """Time of that sample (s)."""
         self.last_reference: Reference | None = None
         self.last_measurement: PlatformMeasurement | None = None
         self._ego: EgoState | None = None
@@ -340,55 +319,41 @@ class Pipeline:
         the maximum).
 
         ``range_m`` is the largest of the last three valid readings (None unless all three are valid),
-        robust to one noisy low reading; the land detector also sees the raw reading, whose ``-inf``
-        (too close) is evidence of the floor."""
-        self.range_raw_m = range_m
-        value = range_m if range_m is not None and math.isfinite(range_m) else None
-        self._ranges.append(value)
-        if len(self._ranges) > 3:
-            self._ranges.pop(0)
-        valid = [r for r in self._ranges if r is not None]
-        full = len(valid) == len(self._ranges)
-        self.range_m = max(valid) if full else None
-        self.range_low_m = min(valid) if full else None
+        robust to one noisy low reading, which the detector reads; ``range_low_m`` the smallest, which
+        the mission's ground check reads; the land detector reads the raw reading ``range_raw_m``, whose
+        ``-inf`` (too close) is evidence of the floor (:class:`~alight.mission.range_filter.RangeFilter`)."""
+        f = self.ranges
+        f.update(range_m)
+        self.range_raw_m, self.range_m, self.range_low_m = f.raw_m, f.high_m, f.low_m
 
     def on_flow(self, t: float, flow_B_rad_s: FloatArray, distance_m: float) -> None:
         """An optical-flow sample at ``t``: the apparent angular rate of the surface under the module along
         x_B and y_B (rad/s, (2,), not compensated for the body's rotation: ``(-v_x / d + w_y, -v_y / d -
         w_x)``, :class:`alight.sim.sensors.FlowSample`) and the module's distance to it along -z_B (m).
 
-        With the ego estimate's body rates, attitude and descent rate over the deck (less the platform
-        estimate's vertical speed) it gives the feet's horizontal velocity across the surface
-        (:func:`alight.estimation.optical_flow.horizontal_slip_W`), ``deck_slip_W``, and so the deck's own
-        velocity under them (``deck_velocity_W``), which the committed descent compares with the platform
-        estimate. A sample that is not finite, from a non-positive distance, stamped in the future or
-        taken tilted past 60 deg is dropped."""
-        ego = self.ego()
-        if not (math.isfinite(t) and t <= ego.t + FLOW_MAX_AGE_S):
-            return  # a sample from the future (a clock gone wrong) is not read
-        v_S_W = module_velocity_W(ego.v_WB, ego.q_WB, ego.w_WB_B, self.flow_origin_B)
+        With the ego estimate and the platform estimate's vertical speed it gives the feet's horizontal
+        velocity across the surface and the deck's own velocity under them (:class:`DeckFlow`), which the
+        committed descent compares with the platform estimate."""
         target = self._target  # the mission step's estimate, at most a step old (a deck's vertical speed)
-        v_rel_z = float(v_S_W[2]) - (0.0 if target is None else float(target.v_WP[2]))
-        slip = horizontal_slip_W(flow_B_rad_s, distance_m, ego.w_WB_B, ego.q_WB, v_rel_z)
-        if slip is None:
-            return
-        self.deck_slip_W = slip
-        self.deck_velocity_W = np.array([float(v_S_W[0]) - slip[0], float(v_S_W[1]) - slip[1]])
-        self.deck_slip_t = t
+        self.deck_flow.update(
+            t, flow_B_rad_s, distance_m, self.ego(), 0.0 if target is None else float(target.v_WP[2])
+        )
+
+    @property
+    def flow_origin_B(self) -> tuple[float, float, float]:
+        """Where the optical-flow module sits in B (m)."""
+        return self.deck_flow.origin_B
+
+    @property
+    def deck_slip_W(self) -> FloatArray | None:
+        """The feet's horizontal velocity relative to the surface under them (m/s, (2,) in W), from the
+        last optical-flow sample; None before one (a vehicle without a module)."""
+        return self.deck_flow.slip_W
 
     def deck_slip_mps(self, t: float) -> float | None:
         """The feet's horizontal speed across the surface under them (m/s) from an optical-flow sample of
-        the last :data:`FLOW_MAX_AGE_S`; None without one."""
-        if self.deck_slip_W is None or t - self.deck_slip_t > FLOW_MAX_AGE_S:
-            return None
-        return math.hypot(float(self.deck_slip_W[0]), float(self.deck_slip_W[1]))
-
-    def flow_deck_velocity_W(self, t: float) -> FloatArray | None:
-        """The horizontal velocity of the surface under the feet (m/s, (2,) in W) measured by an optical-flow
-        sample of the last :data:`FLOW_MAX_AGE_S`; None without one."""
-        if self.deck_velocity_W is None or t - self.deck_slip_t > FLOW_MAX_AGE_S:
-            return None
-        return self.deck_velocity_W
+        the last :data:`~alight.estimation.optical_flow.FLOW_MAX_AGE_S`; None without one."""
+        return self.deck_flow.slip_mps(t)
 
     def on_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
         """The platform's own GNSS fix, taken at ``t_stamp`` and arriving now (later): position (3,) m,
@@ -514,7 +479,12 @@ class Pipeline:
         t0 = time.perf_counter()
         landed = self.touchdown.state is TouchdownState.LANDED
         self.status = self.mission.step(
-            t, ego, target, self.range_low_m, touchdown=landed, deck_velocity_W=self.flow_deck_velocity_W(t)
+            t,
+            ego,
+            target,
+            self.range_low_m,
+            touchdown=landed,
+            deck_velocity_W=self.deck_flow.velocity_W_at(t),
         )
         self.stats.charge("mission", t0)
         if self.status.changed and self.status.mode is not Mode.LANDED and not self._detector_armed():
@@ -528,7 +498,6 @@ class Pipeline:
             # Standing on the ground is a disturbance to an adaptive or integrating controller (the
             # ground holds the vehicle against a reference below it): start the flight from zero.
             self.controller.reset()
-            self._z_takeoff = float(ego.p_WB[2])
         if self.status.changed and self.status.mode is Mode.LAND and self.stats.t_landing_start is None:
             self.stats.t_landing_start = t
         hover_W = self.mission.hover_point_W()
@@ -555,42 +524,18 @@ class Pipeline:
         t0 = self.stats.charge("guidance", t0)
         self.last_reference = ref
         if self._set_tilt_limit is not None:
-            self._limit_tilt_near_ground(mode, ego)
+            # the mission's limit near the ground (take-off, touchdown), set on the controller when it changes
+            limit = self.mission.tilt_limit_rad(mode, ego, self.range_raw_m)
+            if limit != self._tilt_limit:
+                self._set_tilt_limit(limit)
+                self._tilt_limit = limit
         cmd = self.controller.command(ego, ref)
         self.stats.charge("controller", t0)
         self.touchdown.observe_attitude(t, ego.q_WB)
         if self._detector_armed():
-            cmd = self._touchdown_step(t, ego, target, cmd)
+            # the land detector spools the thrust down on ground contact and stops the motors once landed
+            cmd = self.touchdown.command(t, ego, target, self.range_raw_m, cmd)
         return cmd
-
-    def _limit_tilt_near_ground(self, mode: Mode, ego: EgoState) -> None:
-        """Near the ground during the take-off, the tilt is limited (``mission.takeoff_clearance_m``,
-        ``takeoff_max_tilt_rad``): a vehicle that leans into a wind or toward its climb's goal with its
-        feet a few centimetres up puts a foot on the ground and tips. PX4 limits the tilt during its
-        take-off ramp for the same reason. The vehicle drifts with the wind until clear, then corrects.
-
-        In a committed descent with the range finder reading less than ``land_touchdown_clearance_m``
-        from the feet, the tilt is limited to ``land_touchdown_max_tilt_rad`` when set (PX4's
-        ``MPC_TILTMAX_LND`` does it for its landings): the feet meet the deck level enough for the gear,
-        and the vehicle drifts with a gust for the last fraction of a second instead of leaning into it."""
-        cfg = self.mission.config
-        limit: float | None = None
-        if (
-            mode is Mode.TAKEOFF
-            and self._z_takeoff is not None
-            and float(ego.p_WB[2]) - self._z_takeoff < cfg.takeoff_clearance_m
-        ):
-            limit = cfg.takeoff_max_tilt_rad
-        elif mode is Mode.LAND and cfg.land_touchdown_max_tilt_rad is not None and self.mission.committed:
-            r = self.range_raw_m
-            if r is not None and (
-                r == -math.inf or (math.isfinite(r) and r < cfg.land_touchdown_clearance_m)
-            ):
-                limit = cfg.land_touchdown_max_tilt_rad
-        if limit != self._tilt_limit:
-            assert self._set_tilt_limit is not None
-            self._set_tilt_limit(limit)
-            self._tilt_limit = limit
 
     def _detector_armed(self) -> bool:
         """The land detector runs during a descent: the landing, and a final action's descent."""
@@ -648,17 +593,3 @@ class Pipeline:
             block_time_s=dict(stats.block_time_s),
             mode_history=tuple(mission.history),
         )
-
-    def _touchdown_step(
-        self, t: float, ego: EgoState, target: PlatformEstimate | None, cmd: Command
-    ) -> Command:
-        """Spool the thrust down on ground contact and stop the motors once the land detector says
-        landed (mission/touchdown_detector.py)."""
-        scale = self.touchdown.thrust_scale(t)
-        thrust = cmd.thrust_N * scale
-        v_z_rel = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
-        if self.touchdown.update(t, v_z_rel, self.range_raw_m, thrust) is TouchdownState.LANDED:
-            return Command(t, 0.0, _ZERO3, motors_off=True)
-        if self.touchdown.spooling():
-            return Command(t, thrust, self.touchdown.level_rates(ego.q_WB))
-        return cmd

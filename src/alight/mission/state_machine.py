@@ -439,22 +439,7 @@ class Mission:
         mode = self.mode
 
         if mode is Mode.TAKEOFF:
-            # Done at the hover altitude once steady. A horizontal offset (wind holding the vehicle off
-            # the take-off point) is the position loop's to remove, not a reason to stay in take-off.
-            offset = abs(float(ego.p_WB[2] - self.hover_point_W()[2]))
-            speed = float(np.linalg.norm(ego.v_WB))
-            height = float(ego.p_WB[2] - self.takeoff_point_W[2])
-            if target is not None and age < cfg.lost_timeout_s and height >= cfg.track_height_m:
-                # a platform seen during the climb is followed at once: it moves on while we climb
-                self._go(t, Mode.TRACK, "target seen above the tracking height")
-            elif offset < cfg.hover_tolerance_m and speed < cfg.hover_speed_tolerance_mps:
-                if target is not None and age < cfg.lost_timeout_s:
-                    self._go(t, Mode.TRACK, "hover reached, target already seen")
-                else:
-                    self._go(t, Mode.EXPLORE, "hover reached, no target yet")
-            elif t - self.mode_since > cfg.takeoff_timeout_s:
-                self._event(t, "takeoff_timeout", f"hover not reached in {cfg.takeoff_timeout_s:g} s")
-                self._abort(t, ego, "take-off timeout")
+            self._step_takeoff(t, ego, target, age)
 
         elif mode is Mode.EXPLORE:
             if over_budget:
@@ -479,31 +464,56 @@ class Mission:
             self._step_land(t, ego, target, age, over_budget, touchdown, range_m, deck_velocity_W)
 
         elif mode is Mode.GO_AROUND:
-            # A go-around is flown to its end, the tracking height over the deck, also past the retry
-            # limit or the time budget: the final action then starts clear of the deck. Started in the
-            # committed descent, a quarter metre over a deck at 5 m/s, the final action's climb (a long
-            # move to a hover point that stays behind) kept sinking for 0.8 s while the vehicle braked,
-            # and met the deck 0.8 m off its centre at 1.6 m/s (the envelope's figure-8, 2026-11-29).
-            # Without an estimate the deck's height is unknown: the limits act at once, as before.
-            if target is not None:
-                regained = float(ego.p_WB[2] - target.p_WP[2]) > cfg.track_height_m - cfg.hover_tolerance_m
-            else:
-                regained = bool(ego.p_WB[2] > cfg.explore_altitude_m - cfg.hover_tolerance_m)
-            limit = self.go_arounds > cfg.max_go_arounds
-            if (limit or over_budget) and (regained or target is None):
-                if limit:
-                    self._event(t, "retry_limit", f"{self.go_arounds} go-arounds")
-                    self._abort(t, ego, "too many go-arounds")
-                else:
-                    self._abort(t, ego, "time budget spent")
-            elif regained:
-                self._go(t, Mode.TRACK, "tracking height regained")
+            self._step_go_around(t, ego, target, over_budget)
 
         elif mode is Mode.ABORT:
             self._step_abort(t, ego, touchdown)
 
         # LANDED is final; ABORT's only way on is its final action.
         return MissionStatus(self.mode, self.mode is not before, self.reason, self.mode_since)
+
+    def _step_takeoff(self, t: float, ego: EgoState, target: PlatformEstimate | None, age: float) -> None:
+        cfg = self.config
+        # Done at the hover altitude once steady. A horizontal offset (wind holding the vehicle off
+        # the take-off point) is the position loop's to remove, not a reason to stay in take-off.
+        offset = abs(float(ego.p_WB[2] - self.hover_point_W()[2]))
+        speed = float(np.linalg.norm(ego.v_WB))
+        height = float(ego.p_WB[2] - self.takeoff_point_W[2])
+        if target is not None and age < cfg.lost_timeout_s and height >= cfg.track_height_m:
+            # a platform seen during the climb is followed at once: it moves on while we climb
+            self._go(t, Mode.TRACK, "target seen above the tracking height")
+        elif offset < cfg.hover_tolerance_m and speed < cfg.hover_speed_tolerance_mps:
+            if target is not None and age < cfg.lost_timeout_s:
+                self._go(t, Mode.TRACK, "hover reached, target already seen")
+            else:
+                self._go(t, Mode.EXPLORE, "hover reached, no target yet")
+        elif t - self.mode_since > cfg.takeoff_timeout_s:
+            self._event(t, "takeoff_timeout", f"hover not reached in {cfg.takeoff_timeout_s:g} s")
+            self._abort(t, ego, "take-off timeout")
+
+    def _step_go_around(
+        self, t: float, ego: EgoState, target: PlatformEstimate | None, over_budget: bool
+    ) -> None:
+        cfg = self.config
+        # A go-around is flown to its end, the tracking height over the deck, also past the retry
+        # limit or the time budget: the final action then starts clear of the deck. Started in the
+        # committed descent, a quarter metre over a deck at 5 m/s, the final action's climb (a long
+        # move to a hover point that stays behind) kept sinking for 0.8 s while the vehicle braked,
+        # and met the deck 0.8 m off its centre at 1.6 m/s (the envelope's figure-8, 2026-11-29).
+        # Without an estimate the deck's height is unknown: the limits act at once, as before.
+        if target is not None:
+            regained = float(ego.p_WB[2] - target.p_WP[2]) > cfg.track_height_m - cfg.hover_tolerance_m
+        else:
+            regained = bool(ego.p_WB[2] > cfg.explore_altitude_m - cfg.hover_tolerance_m)
+        limit = self.go_arounds > cfg.max_go_arounds
+        if (limit or over_budget) and (regained or target is None):
+            if limit:
+                self._event(t, "retry_limit", f"{self.go_arounds} go-arounds")
+                self._abort(t, ego, "too many go-arounds")
+            else:
+                self._abort(t, ego, "time budget spent")
+        elif regained:
+            self._go(t, Mode.TRACK, "tracking height regained")
 
     def _step_track(
         self, t: float, ego: EgoState, target: PlatformEstimate | None, age: float, over_budget: bool
@@ -580,33 +590,8 @@ class Mission:
             self._committed_since = t
             self._committed_speed = float(np.hypot(target.v_WP[0], target.v_WP[1]))
         if self._committed_since is not None:
-            change = abs(float(np.hypot(target.v_WP[0], target.v_WP[1])) - self._committed_speed)
-            margin = cfg.land_commit_ground_margin_m
-            if t - self._committed_since > self.commit_timeout_s():
-                self._go_around(t, "no touchdown after the commit height")
-            elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
-                self._go_around(t, "platform speed changed after the commit")
-            elif (
-                cfg.land_commit_deck_velocity_error_mps is not None
-                and deck_velocity_W is not None
-                and math.hypot(
-                    float(deck_velocity_W[0]) - float(target.v_WP[0]),
-                    float(deck_velocity_W[1]) - float(target.v_WP[1]),
-                )
-                > cfg.land_commit_deck_velocity_error_mps
-            ):
-                # measured, not predicted: the deck under the feet no longer moves as the estimate the
-                # descent flies on (optical flow). No height floor: the module sees the deck until the
-                # feet are centimetres over it
-                self._go_around(t, "the deck left the estimate under the committed descent (optical flow)")
-            elif margin is not None and range_m is not None and range_m > height + margin:
-                # the range from the feet exceeds the body's height over the estimated deck: the surface
-                # below is lower than the deck (the ground beside it)
-                self._go_around(t, "ground below the committed descent")
-            else:
-                # a gust or a hard turn after the commit: pause the descent (no go-around this low) until
-                # it is over, while the feet are still clear of the deck; the commit timeout still runs
-                self.descent_hold = (no_lull or turning) and height > 0.5 * cfg.land_commit_height_m
+            committed_s = t - self._committed_since
+            self._step_committed(t, committed_s, target, height, no_lull or turning, range_m, deck_velocity_W)
             return
         dp = float(np.linalg.norm(ego.p_WB[:2] - target.p_WP[:2]))
         dv = float(np.linalg.norm(ego.v_WB[:2] - target.v_WP[:2]))
@@ -630,12 +615,7 @@ class Mission:
             # platform to end (a marginal gate first)
             tilt_wait = not marginal and (no_lull or turning) and height <= cfg.land_commit_height_m
             if tilt_wait and not self._tilt_wait:
-                if no_lull:
-                    why = f"tilt {math.degrees(self.tilt_lp_rad):.1f} deg: waiting for a lull"
-                else:
-                    a = math.hypot(float(target.a_WP[0]), float(target.a_WP[1]))
-                    why = f"platform turning at {a:.2f} m/s^2: waiting for it to drive straight"
-                self._event(t, "descent_hold", why)
+                self._tilt_wait_event(t, target, no_lull)
             self._tilt_wait = tilt_wait
             if (marginal or tilt_wait) and not self.descent_hold:
                 self.descent_hold, self._hold_since = True, t
@@ -651,6 +631,58 @@ class Mission:
                 else:
                     self._go_around(t, "no lull in the tilt" if no_lull else "the platform kept turning hard")
 
+    def _tilt_wait_event(self, t: float, target: PlatformEstimate, no_lull: bool) -> None:
+        """Record that the descent waits at the commit height: for a lull in the tilt (``no_lull``), or
+        for the platform to end its hard turn."""
+        if no_lull:
+            why = f"tilt {math.degrees(self.tilt_lp_rad):.1f} deg: waiting for a lull"
+        else:
+            a = math.hypot(float(target.a_WP[0]), float(target.a_WP[1]))
+            why = f"platform turning at {a:.2f} m/s^2: waiting for it to drive straight"
+        self._event(t, "descent_hold", why)
+
+    def _step_committed(
+        self,
+        t: float,
+        committed_s: float,
+        target: PlatformEstimate,
+        height: float,
+        gate_shut: bool,
+        range_m: float | None,
+        deck_velocity_W: FloatArray | None,
+    ) -> None:
+        """The committed descent's checks (``committed_s``: how long it has been committed, s; ``height``:
+        the body's over the estimated deck, m; ``gate_shut``: the tilt or the platform's turn shuts the
+        commit gate now)."""
+        cfg = self.config
+        change = abs(float(np.hypot(target.v_WP[0], target.v_WP[1])) - self._committed_speed)
+        margin = cfg.land_commit_ground_margin_m
+        if committed_s > self.commit_timeout_s():
+            self._go_around(t, "no touchdown after the commit height")
+        elif change > cfg.land_commit_speed_change_mps and height > 0.25 * cfg.land_commit_height_m:
+            self._go_around(t, "platform speed changed after the commit")
+        elif (
+            cfg.land_commit_deck_velocity_error_mps is not None
+            and deck_velocity_W is not None
+            and math.hypot(
+                float(deck_velocity_W[0]) - float(target.v_WP[0]),
+                float(deck_velocity_W[1]) - float(target.v_WP[1]),
+            )
+            > cfg.land_commit_deck_velocity_error_mps
+        ):
+            # measured, not predicted: the deck under the feet no longer moves as the estimate the
+            # descent flies on (optical flow). No height floor: the module sees the deck until the
+            # feet are centimetres over it
+            self._go_around(t, "the deck left the estimate under the committed descent (optical flow)")
+        elif margin is not None and range_m is not None and range_m > height + margin:
+            # the range from the feet exceeds the body's height over the estimated deck: the surface
+            # below is lower than the deck (the ground beside it)
+            self._go_around(t, "ground below the committed descent")
+        else:
+            # a gust or a hard turn after the commit: pause the descent (no go-around this low) until
+            # it is over, while the feet are still clear of the deck; the commit timeout still runs
+            self.descent_hold = gate_shut and height > 0.5 * cfg.land_commit_height_m
+
     def commit_timeout_s(self) -> float:
         """How long a committed descent may last without a touchdown (s): ``land_commit_timeout_s``."""
         cfg = self.config
@@ -662,6 +694,39 @@ class Mission:
     def committed(self) -> bool:
         """True while the descent is committed (below the commit height, entered with every gate good)."""
         return self._committed_since is not None
+
+    def tilt_limit_rad(self, mode: Mode, ego: EgoState, range_raw_m: float | None) -> float | None:
+        """The tilt limit for the controller now (rad; None: unlimited), in ``mode`` (the last step's) with
+        the ego estimate ``ego`` (its height over :attr:`takeoff_point_W` during the take-off) and
+        ``range_raw_m``, the range finder's latest reading from the feet as the sensor reported it
+        (``-inf``: closer than its minimum range; None or NaN: invalid).
+
+        Near the ground during the take-off, the tilt is limited (``takeoff_clearance_m``,
+        ``takeoff_max_tilt_rad``): a vehicle that leans into a wind or toward its climb's goal with its
+        feet a few centimetres up puts a foot on the ground and tips. PX4 limits the tilt during its
+        take-off ramp for the same reason. The vehicle drifts with the wind until clear, then corrects.
+
+        In a committed descent with the range finder reading less than ``land_touchdown_clearance_m``
+        from the feet, the tilt is limited to ``land_touchdown_max_tilt_rad`` when set (PX4's
+        ``MPC_TILTMAX_LND`` does it for its landings): the feet meet the deck level enough for the gear,
+        and the vehicle drifts with a gust for the last fraction of a second instead of leaning into it."""
+        cfg = self.config
+        if (
+            mode is Mode.TAKEOFF
+            and float(ego.p_WB[2]) - float(self.takeoff_point_W[2]) < cfg.takeoff_clearance_m
+        ):
+            return cfg.takeoff_max_tilt_rad
+        if (
+            mode is Mode.LAND
+            and cfg.land_touchdown_max_tilt_rad is not None
+            and self._committed_since is not None
+        ):
+            r = range_raw_m
+            if r is not None and (
+                r == -math.inf or (math.isfinite(r) and r < cfg.land_touchdown_clearance_m)
+            ):
+                return cfg.land_touchdown_max_tilt_rad
+        return None
 
     def _go_around(self, t: float, reason: str) -> None:
         self.go_arounds += 1

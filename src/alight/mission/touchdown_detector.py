@@ -40,8 +40,9 @@ from pydantic.dataclasses import dataclass as pydantic_dataclass
 
 from alight.numerics.rotation import rotmat_entries
 from alight.settings import SETTINGS, PositiveFloat
-from alight.types import GRAVITY_MPS2, FloatArray
+from alight.types import GRAVITY_MPS2, Command, EgoState, FloatArray, PlatformEstimate
 
+_ZERO3 = np.zeros(3)
 Fraction = Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)]
 
 
@@ -207,3 +208,24 @@ class TouchdownDetector:
             else:
                 self._low_since = None
         return self.state
+
+    def command(
+        self,
+        t: float,
+        ego: EgoState,
+        target: PlatformEstimate | None,
+        range_raw_m: float | None,
+        cmd: Command,
+    ) -> Command:
+        """The controller's command ``cmd`` through the land detector while it is armed (a descent): the
+        thrust spooled down on ground contact with the attitude levelled, and the motors stopped once
+        :meth:`update` (fed the vertical speed relative to the platform estimate, the raw range reading
+        and the spooled thrust) says landed."""
+        scale = self.thrust_scale(t)
+        thrust = cmd.thrust_N * scale
+        v_z_rel = float(ego.v_WB[2]) - (0.0 if target is None else float(target.v_WP[2]))
+        if self.update(t, v_z_rel, range_raw_m, thrust) is TouchdownState.LANDED:
+            return Command(t, 0.0, _ZERO3, motors_off=True)
+        if self.spooling():
+            return Command(t, thrust, self.level_rates(ego.q_WB))
+        return cmd

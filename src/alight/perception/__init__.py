@@ -25,7 +25,7 @@ name -> :class:`alight.blockspec.BlockSpec` (parameters, needs/provides, factory
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from alight.perception.aruco import ArucoPadDetector, merge_observations
 from alight.perception.color_filter import RedTargetDetector, RedTargetDetectorConfig
@@ -38,6 +38,9 @@ from alight.perception.pnp import PnpResult, solve_pnp
 from alight.perception.registry import DETECTORS, GEOLOCATORS, DetectorContext, DetectorSpec, GeolocatorSpec
 from alight.perception.sdu_marker import SduMarkerDetector
 from alight.types import FloatArray, Observation, PlatformMeasurement
+
+if TYPE_CHECKING:  # for annotations only
+    from alight.energy import QosEnergyModel
 
 
 @runtime_checkable
@@ -99,6 +102,17 @@ class FrameGate(Protocol):
 
 
 @runtime_checkable
+class ComputeMetered(Protocol):
+    """A detector that meters its own compute: the frames it processed and their energy under a
+    quality-of-service energy model (``perception/qos_detector.py``)."""
+
+    @property
+    def frames_processed(self) -> int: ...
+
+    def energy_J(self, model: QosEnergyModel, duration_s: float = 0.0) -> float: ...
+
+
+@runtime_checkable
 class Geolocator(Protocol):
     """Turns an observation and the ego pose at its capture time into a measurement in W."""
 
@@ -110,6 +124,7 @@ class Geolocator(Protocol):
 
 __all__ = [
     "DETECTORS",
+    "ComputeMetered",
     "FrameGate",
     "GEOLOCATORS",
     "ArucoPadDetector",
