@@ -170,34 +170,8 @@ def _outputs(
     truth: dict[str, np.ndarray] | None,
     wall_s: float,
 ) -> tuple[dict[str, Any], dict[str, np.ndarray], dict[str, float | None]]:
-    pipe = bridge.pipeline
-    log = MissionLog()
-    rows = bridge.log_rows
-    t_rows = np.array([r["t"] for r in rows]) if rows else np.zeros(0)
-    truth_at: dict[str, np.ndarray] = {}
-    if truth is not None and "t" in truth and truth["t"].size > 1 and t_rows.size:
-        for name in _TRUTH:
-            col = truth.get(name)
-            if col is None:
-                continue
-            col2 = col.reshape(col.shape[0], -1)
-            truth_at[name] = np.column_stack(
-                [np.interp(t_rows, truth["t"], col2[:, j]) for j in range(col2.shape[1])]
-            )
-    for i, r in enumerate(rows):
-        ch = {k: v for k, v in r.items() if k not in ("t", "mode") and v is not None}
-        for name, arr in truth_at.items():
-            ch[name] = arr[i] if arr.shape[1] > 1 else float(arr[i, 0])
-        if not truth_at:  # no ground truth (a real flight): the estimate is the best there is
-            ch["p_WB"], ch["v_WB"] = r["p_WB_est"], r["v_WB_est"]
-        log.append(r["t"], mode=r["mode"], **ch)
-    arrays = log.finalize()
-    rmse = None
-    if truth_at and len(arrays["t"]) > 1:
-        err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
-        err = err[np.isfinite(err)]
-        rmse = float(np.sqrt(np.mean(err**2))) if err.size else None
-    stats, summary = pipe.stats, pipe.summary()
+    arrays, rmse = _merged_log(bridge, truth)
+    stats, summary = bridge.pipeline.stats, bridge.pipeline.summary()
     v = verdict or {}
     outcome = v.get("outcome")
     if bridge.phase is Phase.LINK_LOST and outcome is None:
@@ -236,22 +210,7 @@ def _outputs(
         "block_time_s": {k: round(x, 6) for k, x in stats.block_time_s.items()},
         "alight_version": alight.__version__,
         "mode_history": [{"t": t, "mode": m.value, "reason": why} for t, m, why in summary.mode_history],
-        "bridge": {
-            "mode": config.mode,
-            "autopilot": config.autopilot,
-            "setpoint": config.setpoint,
-            "arm": config.arm,
-            "final_phase": bridge.phase.value,
-            "lockstep": bridge.lockstep,
-            "accepted": bridge.stats.accepted,
-            "rejected": bridge.stats.rejected,
-            "parse_errors": bridge.stats.parse_errors,
-            "foreign_messages": bridge.stats.foreign,
-            "setpoints_sent": bridge.stats.setpoints_sent,
-            "hold_setpoints_sent": bridge.stats.holds,
-            "landing_targets_sent": bridge.stats.landing_targets_sent,
-            "events": bridge.events[-200:],
-        },
+        "bridge": _bridge_record(bridge, config),
         "sitl": None
         if verdict is None
         else {"flavour": v.get("sitl_flavour"), "events": v.get("sitl_events")},
@@ -262,3 +221,57 @@ def _outputs(
         "t_touchdown": v.get("time_to_land_s"),
     }
     return result, arrays, events
+
+
+def _merged_log(
+    bridge: MavlinkBridge, truth: dict[str, np.ndarray] | None
+) -> tuple[dict[str, np.ndarray], float | None]:
+    """The bridge's log rows with the emulator's ground truth interpolated onto them (on a real flight,
+    without truth, the estimate stands in for it), and the platform estimate's RMSE against the truth."""
+    log = MissionLog()
+    rows = bridge.log_rows
+    t_rows = np.array([r["t"] for r in rows]) if rows else np.zeros(0)
+    truth_at: dict[str, np.ndarray] = {}
+    if truth is not None and "t" in truth and truth["t"].size > 1 and t_rows.size:
+        for name in _TRUTH:
+            col = truth.get(name)
+            if col is None:
+                continue
+            col2 = col.reshape(col.shape[0], -1)
+            truth_at[name] = np.column_stack(
+                [np.interp(t_rows, truth["t"], col2[:, j]) for j in range(col2.shape[1])]
+            )
+    for i, r in enumerate(rows):
+        ch = {k: v for k, v in r.items() if k not in ("t", "mode") and v is not None}
+        for name, arr in truth_at.items():
+            ch[name] = arr[i] if arr.shape[1] > 1 else float(arr[i, 0])
+        if not truth_at:  # no ground truth (a real flight): the estimate is the best there is
+            ch["p_WB"], ch["v_WB"] = r["p_WB_est"], r["v_WB_est"]
+        log.append(r["t"], mode=r["mode"], **ch)
+    arrays = log.finalize()
+    rmse = None
+    if truth_at and len(arrays["t"]) > 1:
+        err = np.linalg.norm(arrays["p_WP_est"] - arrays["p_WP"], axis=1)
+        err = err[np.isfinite(err)]
+        rmse = float(np.sqrt(np.mean(err**2))) if err.size else None
+    return arrays, rmse
+
+
+def _bridge_record(bridge: MavlinkBridge, config: BridgeConfig) -> dict[str, Any]:
+    """What the bridge did: its settings, its final phase and its message counts."""
+    return {
+        "mode": config.mode,
+        "autopilot": config.autopilot,
+        "setpoint": config.setpoint,
+        "arm": config.arm,
+        "final_phase": bridge.phase.value,
+        "lockstep": bridge.lockstep,
+        "accepted": bridge.stats.accepted,
+        "rejected": bridge.stats.rejected,
+        "parse_errors": bridge.stats.parse_errors,
+        "foreign_messages": bridge.stats.foreign,
+        "setpoints_sent": bridge.stats.setpoints_sent,
+        "hold_setpoints_sent": bridge.stats.holds,
+        "landing_targets_sent": bridge.stats.landing_targets_sent,
+        "events": bridge.events[-200:],
+    }

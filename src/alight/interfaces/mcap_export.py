@@ -228,6 +228,14 @@ class McapExporter:
     def _write_log(
         self, log: Mapping[str, np.ndarray], mode_history: Sequence[tuple[float, str, str]]
     ) -> None:
+        self._declare_channels()
+        t = np.asarray(log["t"], dtype=np.float64)
+        self._write_poses(t, log)
+        self._write_measurements(log)
+        self._write_modes(mode_history)
+        self._write_series(t, log)
+
+    def _declare_channels(self) -> None:
         # every channel is in the file, with no messages where the flight had none (no detection, no
         # camera), so a Foxglove layout made for one flight opens any other
         c = self._classes
@@ -244,7 +252,9 @@ class McapExporter:
             *([(CH_CALIBRATION, c["calibration"])] if self._calibration is not None else []),
         ):
             self._proto_channel(topic, cls)
-        t = np.asarray(log["t"], dtype=np.float64)
+
+    def _write_poses(self, t: NDArray[np.float64], log: Mapping[str, np.ndarray]) -> None:
+        """The vehicle's and the platform's poses (truth and estimate) and their transforms, per log row."""
         n = t.shape[0]
 
         def ch(name: str, width: int) -> NDArray[np.float64]:
@@ -288,6 +298,7 @@ class McapExporter:
             if len(tfs.transforms):
                 self._put(CH_TF, tfs, ti)
 
+    def _write_measurements(self, log: Mapping[str, np.ndarray]) -> None:
         t_det = np.asarray(log.get("t_det", np.zeros(0)), dtype=np.float64).reshape(-1)
         p_meas = np.asarray(log.get("p_WP_meas", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
         for k in np.argsort(t_det, kind="stable"):
@@ -297,6 +308,7 @@ class McapExporter:
                 float(t_det[k]),
             )
 
+    def _write_modes(self, mode_history: Sequence[tuple[float, str, str]]) -> None:
         log_cls = self._classes["log"]
         for tm, mode, reason in mode_history:
             msg = log_cls()
@@ -305,8 +317,6 @@ class McapExporter:
             msg.name = "mission"
             msg.message = f"{mode}: {reason}" if reason else str(mode)
             self._put(CH_MODE, msg, float(tm))
-
-        self._write_series(t, log)
 
     def _write_series(self, t: NDArray[np.float64], log: Mapping[str, np.ndarray]) -> None:
         from alight.evaluation.log import column_names
