@@ -230,6 +230,10 @@ class RedTargetDetectorConfig:
     max_surround_red_frac: float = 0.1
     """In every mode: largest fraction of red (``I_CF``) pixels in the band around the target (1 turns the
     check off)."""
+    min_arc_sagitta_frac: float = 0.02
+    """In every mode, for a target cut by the image border: smallest sagitta of its boundary inside the
+    image, as a fraction of that boundary's length along its chord (0 turns the check off; see "A disc cut
+    by the border" in the module docstring)."""
 
     def __post_init__(self) -> None:
         if self.mitigation not in MITIGATIONS:
@@ -254,7 +258,7 @@ class RedTargetDetectorConfig:
             raise ValueError("min_fill must be <= max_fill")
         if not (math.isfinite(self.gate_radius_px) and self.gate_radius_px > 0):
             raise ValueError(f"gate_radius_px must be finite and > 0, got {self.gate_radius_px}")
-        for name in ("min_inside_boundary_frac", "max_surround_red_frac"):
+        for name in ("min_inside_boundary_frac", "max_surround_red_frac", "min_arc_sagitta_frac"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {v}")
@@ -325,6 +329,57 @@ def region_moments(mask: NDArray[np.uint8], contour: NDArray[np.int32]) -> tuple
     if not mo["m00"] > 0:
         return np.full(2, np.nan), 0.0
     return np.array([mo["m10"] / mo["m00"] + x, mo["m01"] / mo["m00"] + y]), float(mo["m00"])
+
+
+def _edge_points(closed: NDArray[np.int32], seg: NDArray[np.int32], keep: NDArray[np.bool_]) -> FloatArray:
+    """The pixel centres along the kept edges of the closed polygon ``closed`` (N + 1, 2), one per pixel
+    step (``seg`` the edges' Chebyshev lengths): CHAIN_APPROX_SIMPLE left only the ends of straight runs."""
+    a = closed[:-1][keep].astype(np.float64)
+    d = closed[1:][keep].astype(np.float64) - a
+    n = np.maximum(seg[keep], 1)
+    idx = np.repeat(np.arange(len(n)), n)
+    frac = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    return cast(FloatArray, a[idx] + frac[:, None] * d[idx])
+
+
+def rim_is_arc(p_px: FloatArray, centroid_px: FloatArray, min_sagitta_frac: float) -> bool:
+    """Whether the boundary points ``p_px`` (N, 2) of a blob cut by the image border (the part inside the
+    image) are an arc of a circle around the blob (centroid ``centroid_px``), not a straight or ragged
+    line: (1) curved, their spread across their best straight line (the sagitta) at least
+    ``max(MIN_SAGITTA_PX, min_sagitta_frac * chord)``; (2) a circle fits them at least
+    ``1 / ARC_FIT_GAIN`` times better (RMS) than that line; (3) the blob's centroid is inside the circle
+    (the blob is the disc, not what is left around it)."""
+    if len(p_px) < 5:
+        return False
+    c = p_px.mean(axis=0)
+    q = p_px - c
+    _, _, vt = np.linalg.svd(q, full_matrices=False)
+    along, across = q @ vt[0], q @ vt[1]
+    chord = float(along.max() - along.min())
+    if float(across.max() - across.min()) < max(MIN_SAGITTA_PX, min_sagitta_frac * chord):
+        return False
+    # Kasa's algebraic circle fit, x^2 + y^2 + a x + b y + e = 0, on centred points (well conditioned)
+    A = np.column_stack([q, np.ones(len(q))])
+    sol, *_ = np.linalg.lstsq(A, -(q * q).sum(axis=1), rcond=None)
+    centre = -0.5 * sol[:2]
+    r2 = float(centre @ centre - sol[2])
+    if not r2 > 0.0:
+        return False
+    radius = math.sqrt(r2)
+    rms_circle = float(np.sqrt(np.mean((np.hypot(q[:, 0] - centre[0], q[:, 1] - centre[1]) - radius) ** 2)))
+    rms_line = float(np.sqrt(np.mean(across**2)))
+    if rms_circle * ARC_FIT_GAIN > rms_line:
+        return False
+    return bool(np.hypot(*(centroid_px - c - centre)) < radius)
+
+
+MIN_SAGITTA_PX = 3.0
+"""Smallest sagitta (px) of a rim cut by the border: a digital straight edge, even a ragged one after a
+threshold, spreads 1-2 px across its line."""
+ARC_FIT_GAIN = 3.0
+"""How many times smaller a circle's RMS residual must be than the straight line's on a cut rim: an arc
+of a disc (or of the ellipse of a disc seen obliquely) is fitted to a fraction of a pixel, a ragged line
+is not helped by the extra parameter."""
 
 
 class RedTargetDetector:
@@ -446,19 +501,23 @@ class RedTargetDetector:
         c = self.config
         H, W = m.shape
         x, y, w, h = cv2.boundingRect(blob.contour)
+        pts = blob.contour.reshape(-1, 2)
+        # CHAIN_APPROX_SIMPLE keeps only the ends of straight runs: walk the polygon's edges instead
+        closed = np.concatenate([pts, pts[:1]])
+        seg = np.abs(np.diff(closed, axis=0)).max(axis=1)
+        on_border = (
+            ((closed[:-1, 0] == 0) & (closed[1:, 0] == 0))
+            | ((closed[:-1, 0] == W - 1) & (closed[1:, 0] == W - 1))
+            | ((closed[:-1, 1] == 0) & (closed[1:, 1] == 0))
+            | ((closed[:-1, 1] == H - 1) & (closed[1:, 1] == H - 1))
+        )
+        total = float(seg.sum())
         if c.min_inside_boundary_frac > 0.0:
-            pts = blob.contour.reshape(-1, 2)
-            # CHAIN_APPROX_SIMPLE keeps only the ends of straight runs: walk the polygon's edges instead
-            closed = np.concatenate([pts, pts[:1]])
-            seg = np.abs(np.diff(closed, axis=0)).max(axis=1)
-            on_border = (
-                ((closed[:-1, 0] == 0) & (closed[1:, 0] == 0))
-                | ((closed[:-1, 0] == W - 1) & (closed[1:, 0] == W - 1))
-                | ((closed[:-1, 1] == 0) & (closed[1:, 1] == 0))
-                | ((closed[:-1, 1] == H - 1) & (closed[1:, 1] == H - 1))
-            )
-            total = float(seg.sum())
             if total > 0.0 and float(seg[~on_border].sum()) < c.min_inside_boundary_frac * total:
+                return False
+        if c.min_arc_sagitta_frac > 0.0 and bool(on_border.any()):
+            inside = _edge_points(closed, seg, ~on_border)
+            if not rim_is_arc(inside, blob.centroid, c.min_arc_sagitta_frac):
                 return False
         if c.max_surround_red_frac < 1.0:
             band = max(4, round(0.25 * math.sqrt(blob.area_px)))
