@@ -342,13 +342,50 @@ def _edge_points(closed: NDArray[np.int32], seg: NDArray[np.int32], keep: NDArra
     return cast(FloatArray, a[idx] + frac[:, None] * d[idx])
 
 
-def rim_is_arc(p_px: FloatArray, centroid_px: FloatArray, min_sagitta_frac: float) -> bool:
+def _circle_fit(q: FloatArray, centroid: FloatArray, max_aspect: float) -> tuple[float, bool]:
+    """RMS geometric residual (px) of Kasa's algebraic circle fit to the points ``q`` (N, 2) and whether
+    ``centroid`` (2,) is inside the circle; ``(inf, False)`` for a degenerate fit (``max_aspect``: unused,
+    the ellipse's signature)."""
+    A = np.column_stack([q, np.ones(len(q))])  # x^2 + y^2 + a x + b y + e = 0
+    sol, *_ = np.linalg.lstsq(A, -(q * q).sum(axis=1), rcond=None)
+    centre = -0.5 * sol[:2]
+    r2 = float(centre @ centre - sol[2])
+    if not (math.isfinite(r2) and r2 > 0.0):
+        return math.inf, False
+    radius = math.sqrt(r2)
+    rms = float(np.sqrt(np.mean((np.hypot(q[:, 0] - centre[0], q[:, 1] - centre[1]) - radius) ** 2)))
+    return rms, bool(np.hypot(*(centroid - centre)) < radius)
+
+
+def _ellipse_fit(q: FloatArray, centroid: FloatArray, max_aspect: float) -> tuple[float, bool]:
+    """RMS Sampson distance (px) of ``cv2.fitEllipseDirect`` to the points ``q`` (N, 2) and whether
+    ``centroid`` (2,) is inside the ellipse; ``(inf, False)`` for a degenerate fit or one longer than
+    ``max_aspect`` times its width (two parallel edges of a stripe fit a very long ellipse)."""
+    (ex, ey), (w, h), angle_deg = cv2.fitEllipseDirect(q.astype(np.float32))
+    if not (w > 0.0 and h > 0.0 and math.isfinite(w * h) and max(w, h) <= max_aspect * min(w, h)):
+        return math.inf, False
+    a2, b2 = (0.5 * w) ** 2, (0.5 * h) ** 2
+    ca, sa = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    p = np.vstack([q, centroid.reshape(1, 2)])
+    u = (p[:, 0] - ex) * ca + (p[:, 1] - ey) * sa
+    v = -(p[:, 0] - ex) * sa + (p[:, 1] - ey) * ca
+    F = u * u / a2 + v * v / b2 - 1.0  # the implicit function, and its gradient's norm for Sampson's
+    grad = 2.0 * np.hypot(u / a2, v / b2)
+    rms = float(np.sqrt(np.mean((F[:-1] / np.maximum(grad[:-1], 1e-12)) ** 2)))
+    return rms, bool(F[-1] < 0.0)
+
+
+def rim_is_arc(
+    p_px: FloatArray, centroid_px: FloatArray, min_sagitta_frac: float, max_aspect: float = 4.5
+) -> bool:
     """Whether the boundary points ``p_px`` (N, 2) of a blob cut by the image border (the part inside the
-    image) are an arc of a circle around the blob (centroid ``centroid_px``), not a straight or ragged
-    line: (1) curved, their spread across their best straight line (the sagitta) at least
-    ``max(MIN_SAGITTA_PX, min_sagitta_frac * chord)``; (2) a circle fits them at least
-    ``1 / ARC_FIT_GAIN`` times better (RMS) than that line; (3) the blob's centroid is inside the circle
-    (the blob is the disc, not what is left around it)."""
+    image) are an arc of a circle or an ellipse around the blob (centroid ``centroid_px``; a disc's image
+    is one), not a straight or ragged line: (1) curved, their spread across their best straight line (the
+    sagitta) at least ``max(MIN_SAGITTA_PX, min_sagitta_frac * chord)``; (2) a circle (Kasa's fit, stable
+    on a short arc) or an ellipse (``cv2.fitEllipseDirect``, a disc seen obliquely) fits them at least
+    ``ARC_FIT_GAIN`` times better (RMS) than that line and to at most ``ARC_MAX_RMS_PX`` (two straight
+    edges meeting at a corner are neither), (3) with the blob's centroid inside it (the blob is the disc,
+    not what is left around one) and (4), an ellipse, no longer than ``max_aspect`` times its width."""
     if len(p_px) < 5:
         return False
     c = p_px.mean(axis=0)
@@ -358,28 +395,24 @@ def rim_is_arc(p_px: FloatArray, centroid_px: FloatArray, min_sagitta_frac: floa
     chord = float(along.max() - along.min())
     if float(across.max() - across.min()) < max(MIN_SAGITTA_PX, min_sagitta_frac * chord):
         return False
-    # Kasa's algebraic circle fit, x^2 + y^2 + a x + b y + e = 0, on centred points (well conditioned)
-    A = np.column_stack([q, np.ones(len(q))])
-    sol, *_ = np.linalg.lstsq(A, -(q * q).sum(axis=1), rcond=None)
-    centre = -0.5 * sol[:2]
-    r2 = float(centre @ centre - sol[2])
-    if not r2 > 0.0:
-        return False
-    radius = math.sqrt(r2)
-    rms_circle = float(np.sqrt(np.mean((np.hypot(q[:, 0] - centre[0], q[:, 1] - centre[1]) - radius) ** 2)))
     rms_line = float(np.sqrt(np.mean(across**2)))
-    if rms_circle * ARC_FIT_GAIN > rms_line:
-        return False
-    return bool(np.hypot(*(centroid_px - c - centre)) < radius)
+    for fit in (_circle_fit, _ellipse_fit):
+        rms, inside = fit(q, centroid_px - c, max_aspect)
+        if inside and rms <= ARC_MAX_RMS_PX and rms * ARC_FIT_GAIN <= rms_line:
+            return True
+    return False
 
 
 MIN_SAGITTA_PX = 3.0
 """Smallest sagitta (px) of a rim cut by the border: a digital straight edge, even a ragged one after a
 threshold, spreads 1-2 px across its line."""
+ARC_MAX_RMS_PX = 1.0
+"""Largest RMS residual (px) of the circle or ellipse on a cut rim: a disc's rim, thresholded from an
+anti-aliased or blurred image, is fitted to a fraction of a pixel."""
 ARC_FIT_GAIN = 3.0
-"""How many times smaller a circle's RMS residual must be than the straight line's on a cut rim: an arc
-of a disc (or of the ellipse of a disc seen obliquely) is fitted to a fraction of a pixel, a ragged line
-is not helped by the extra parameter."""
+"""How many times smaller an ellipse's RMS residual must be than the straight line's on a cut rim: the
+arc of a disc's image is fitted to a fraction of a pixel, a ragged line is not helped by the extra
+parameters."""
 
 
 class RedTargetDetector:
@@ -517,7 +550,7 @@ class RedTargetDetector:
                 return False
         if c.min_arc_sagitta_frac > 0.0 and bool(on_border.any()):
             inside = _edge_points(closed, seg, ~on_border)
-            if not rim_is_arc(inside, blob.centroid, c.min_arc_sagitta_frac):
+            if not rim_is_arc(inside, blob.centroid, c.min_arc_sagitta_frac, c.max_aspect):
                 return False
         if c.max_surround_red_frac < 1.0:
             band = max(4, round(0.25 * math.sqrt(blob.area_px)))
