@@ -73,6 +73,17 @@ it, two checks on the candidate alone:
   colour filter. A target lies on a background of another colour (its band is empty); a speckle of noise
   is surrounded by other speckles as red as itself (20-60 % of the band on noise frames). A distractor
   that touches the band takes part of it, so the bound is a fraction, not zero.
+- *a disc cut by the border* (``min_arc_sagitta_frac``): a candidate that touches the image border must
+  have a rim (its boundary inside the image) that is an arc of a circle or of an ellipse around it
+  (:func:`rim_is_arc`): curved (sagitta at least 3 px and 2 % of the chord), fitted to 1 px RMS and 3
+  times better than by a straight line, the candidate inside the curve. A half-frame tint, a corner of
+  red, a stripe or the region above an iso-line of a red gradient has a straight or angular rim and is
+  not the target (each came out at quality 1.0, also with ``shape``). The last metre of a landing keeps
+  its target: the pad's rim in view is an arc whatever the border cuts, for a disc of radius up to
+  about 3,000 px in a 640x480 frame (a rim across the frame's height then has a sagitta of 9.6 px, the 2 %
+  bound); a disc much larger than the frame shows an edge as straight as a tint's.
+  Decided: a candidate with no rim in view (the frame red all over, the pad filling the whole view) is
+  indistinguishable from a tint and gives ``[]``; the estimator predicts through those last frames.
 
 Input: :func:`alight.perception.image_input.as_bgr_u8` (16-bit, float and BGRA images are converted). A
 grey image has no colour to filter: ``detect`` returns ``[]`` for it (the Detector protocol: no exception
