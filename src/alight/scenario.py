@@ -30,7 +30,15 @@ from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from alight.errors import ConfigError
 from alight.mission.guidance import GuidanceConfig
@@ -42,8 +50,10 @@ from alight.settings import (
     NonNegFloat,
     PositiveFloat,
     Probability,
+    RateHz,
     Section,
     dataclass_keys,
+    refuse_bool_for_int,
     section_model,
 )
 from alight.sim.sensors import OpticalFlowConfig, RangeFinderConfig
@@ -59,12 +69,16 @@ Coordinate = Annotated[float, Field(ge=-MAX_DISTANCE_M, le=MAX_DISTANCE_M, allow
 Length = Annotated[float, Field(gt=0, le=MAX_DISTANCE_M, allow_inf_nan=False)]
 MountCoordinate = Annotated[float, Field(ge=-2.0, le=2.0, allow_inf_nan=False)]
 """A sensor's position on the vehicle along one body axis (m): within 2 m of the body origin."""
-RateHz = Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)]
 WindComponent = Annotated[float, Field(ge=-60.0, le=60.0, allow_inf_nan=False)]
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_int(cls, value: Any, info: ValidationInfo) -> Any:
+        return refuse_bool_for_int(cls, str(info.field_name), value)
 
 
 MAX_PLATFORM_DECEL_MPS2 = 8.0
@@ -114,13 +128,20 @@ class SpeedProfileSpec(_Strict):
         return self
 
 
+MIN_PAD_SIZE_M = 0.1
+"""Smallest pad (m): the feet of the smallest camera-carrying multirotor (a 10 cm gear); 1e-9 m flew
+today. A scenario also needs a pad wider than its own gear (checked against ``contact``)."""
+
+
 class PlatformSpec(_Strict):
     """The ground vehicle that carries the pad."""
 
     path: Literal["straight", "circle", "figure8", "tractor", "random"] = "straight"
     speed_mps: Annotated[float, Field(ge=0, le=50.0, allow_inf_nan=False)] = 1.2
     """Speed along the path (m/s), at most 50 (180 km/h)."""
-    pad_size_m: Annotated[float, Field(gt=0, le=20.0, allow_inf_nan=False)] = 1.5
+    pad_size_m: Annotated[float, Field(ge=MIN_PAD_SIZE_M, le=20.0, allow_inf_nan=False)] = 1.5
+    """Side of the square pad (m), at least :data:`MIN_PAD_SIZE_M` and wider than the landing gear's
+    footprint (``contact.gear_half_width_m``)."""
     pad_height_m: Annotated[float, Field(ge=0, le=20.0, allow_inf_nan=False)] = 0.5
     start_xy: tuple[Coordinate, Coordinate] | None = None
     """Start of the path in W (m); None draws it from the seed inside the search area."""
@@ -695,6 +716,11 @@ class ContactSpec(_Strict):
     """Coulomb friction coefficient of the feet on the deck and the ground."""
 
 
+MIN_DURATION_S = 1.0
+"""Shortest mission (s): the motors' spin-up to hover thrust (~0.2 s) and a climb of a metre at 1 m/s,
+the least a take-off takes; 1e-9 s flew today and was recorded as a result."""
+
+
 class Scenario(_Strict):
     """One mission."""
 
@@ -702,8 +728,9 @@ class Scenario(_Strict):
     """A packaged preset (``mission/preset_data``): ``alight`` (this project's own composition),
     ``groundtruth``, ``falanga2017``, ``kim_kaist``, ``zamanakos_sdu``."""
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
-    duration_s: Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)] = 120.0
-    """Simulated time limit of the mission (s), at most :data:`MAX_DURATION_S` (3600)."""
+    duration_s: Annotated[float, Field(ge=MIN_DURATION_S, le=MAX_DURATION_S, allow_inf_nan=False)] = 120.0
+    """Simulated time limit of the mission (s), from :data:`MIN_DURATION_S` (1) to :data:`MAX_DURATION_S`
+    (3600)."""
     platform: PlatformSpec = Field(default_factory=PlatformSpec)
     wind: WindSpec = Field(default_factory=WindSpec)
     perception: PerceptionSpec = Field(default_factory=PerceptionSpec)
@@ -726,6 +753,17 @@ class Scenario(_Strict):
     """The blocks that fly, overriding the preset's (``docs/blocks.md``)."""
     name: str | None = None
     """Free text naming the scenario in reports."""
+
+    @model_validator(mode="after")
+    def _pad_holds_the_gear(self) -> Scenario:
+        # the centre must stay gear_half_width_m inside each edge: on a narrower pad no landing counts
+        gear = 2.0 * self.contact.gear_half_width_m
+        if not self.platform.pad_size_m > gear:
+            raise ValueError(
+                f"platform.pad_size_m: {self.platform.pad_size_m:g} m is no wider than the landing gear "
+                f"(2 x contact.gear_half_width_m = {gear:g} m)"
+            )
+        return self
 
     @model_validator(mode="after")
     def _flow_faults_need_the_module(self) -> Scenario:

@@ -20,9 +20,18 @@ from __future__ import annotations
 import dataclasses
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Annotated, Any, cast, get_args
+from typing import TYPE_CHECKING, Annotated, Any, cast, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic.dataclasses import is_pydantic_dataclass
 from pydantic.fields import FieldInfo
 
@@ -35,6 +44,12 @@ PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
 
+MIN_RATE_HZ = 0.1
+"""Slowest sensor, loop or frame rate (Hz): a reading less often than every 10 s is no feedback for a
+vehicle that moves metres per second (1e-9 Hz flew as a mission without a single reading)."""
+RateHz = Annotated[float, Field(ge=MIN_RATE_HZ, le=1000.0, allow_inf_nan=False)]
+"""A sensor, loop or frame rate (Hz), from :data:`MIN_RATE_HZ` to 1000."""
+
 MAX_DURATION_S = 3600.0
 """Longest mission (s): an hour, ten times a multirotor's endurance."""
 Altitude = Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)]
@@ -43,11 +58,33 @@ Duration = Annotated[float, Field(gt=0, le=MAX_DURATION_S, allow_inf_nan=False)]
 """A time span within one mission (s), at most :data:`MAX_DURATION_S`."""
 
 
+def _is_int_field(annotation: Any) -> bool:
+    """Whether a field's type is ``int`` or ``int | None`` (bool aside: a bool field takes booleans)."""
+    candidates = (annotation, *get_args(annotation))
+    members = [get_args(a)[0] if get_origin(a) is Annotated else a for a in candidates]
+    return int in members and bool not in members
+
+
+def refuse_bool_for_int(model: type[BaseModel], name: str, value: Any) -> Any:
+    """``value`` unchanged, unless field ``name`` of ``model`` is an integer and ``value`` a boolean:
+    pydantic's lax mode reads ``seed: true`` as seed 1, a typo flown as a result."""
+    field = model.model_fields.get(name)
+    if isinstance(value, bool) and field is not None and _is_int_field(field.annotation):
+        raise ValueError(f"an integer, not a boolean ({str(value).lower()})")
+    return value
+
+
 class Section(BaseModel):
-    """Base of the derived scenario sections: frozen, unknown keys refused. For the type checker a
-    derived section is this class with any attribute (mypy cannot see fields made at import time)."""
+    """Base of the derived scenario sections: frozen, unknown keys refused, no boolean for an integer.
+    For the type checker a derived section is this class with any attribute (mypy cannot see fields made
+    at import time)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_int(cls, value: Any, info: ValidationInfo) -> Any:
+        return refuse_bool_for_int(cls, str(info.field_name), value)
 
     if TYPE_CHECKING:
 

@@ -121,3 +121,38 @@ def test_short_fuzz_finds_no_crash_or_hang(tmp_path: Path, fuzz_logs: ModuleType
     assert totals["clean"] > 0  # damage was found and reported, not only missed
     assert sum(totals.values()) == 3 * 2 * len(inputs)
     assert len(inputs) == (5 if ULOG.is_file() else 4)
+
+
+def test_empty_unreadable_and_foreign_directories(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A directory that is not a ROS 2 bag: one line, not rosbags' 34-line traceback."""
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert "empty directory" in _replay_fails(capsys, empty)
+    foreign = tmp_path / "photos"
+    foreign.mkdir()
+    (foreign / "a.txt").write_text("not a bag")
+    assert "no metadata.yaml" in _replay_fails(capsys, foreign)
+    if os.geteuid() != 0:  # root reads any directory
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0)
+        assert "cannot read the directory" in _replay_fails(capsys, locked)
+
+
+def test_a_ulog_cut_short_is_said(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A ULog cut to 10 % replays its first part, and says that the log ends early; the whole log does
+    not (its messages end exactly at the end of the file)."""
+    from alight.interfaces.replay_readers import ulog_cut_at
+
+    if not ULOG.is_file():
+        pytest.skip(f"real test data not found at {ULOG} (set ALIGHT_TESTDATA)")
+    data = ULOG.read_bytes()
+    assert ulog_cut_at(ULOG) is None
+    cut = tmp_path / "tenth.ulg"
+    cut.write_bytes(data[: len(data) // 10])
+    at = ulog_cut_at(cut)
+    assert at is not None and 16 < at < len(data) // 10
+    assert main(["replay", str(cut), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "the log ends early" in err and f"byte {at} of {len(data) // 10}" in err
+    assert main(["replay", str(ULOG), "--out", str(tmp_path / "whole")]) == 0
+    assert "ends early" not in capsys.readouterr().err

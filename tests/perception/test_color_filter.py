@@ -363,3 +363,125 @@ def test_circularity_above_a_squares_tells_the_disc_from_bigger_red_boxes() -> N
     shape = RedTargetDetector(RedTargetDetectorConfig(mitigation="shape", min_circularity=0.8))
     found = shape.detect(img, 0.0)
     assert found and np.hypot(*(found[0].pixels[0] - (80, 120))) < 1.0
+
+
+# ---- a tint or a gradient is not a disc cut by the border (issue 39, point 4) ----------------------------
+
+
+def _grey(h: int = 480, w: int = 640) -> np.ndarray:
+    return np.full((h, w, 3), GREY_BGR, np.uint8)
+
+
+def _tints() -> dict[str, np.ndarray]:
+    """Frames with red over a region bounded by straight lines or iso-lines: no disc anywhere."""
+    out = {}
+    for name, sl in [
+        ("right half", np.s_[:, 320:]),
+        ("left half", np.s_[:, :320]),
+        ("top half", np.s_[:240]),
+    ]:
+        img = _grey()
+        img[sl] = (0, 0, 255)
+        out[name] = img
+    corner = _grey()
+    corner[:240, :320] = (0, 0, 255)
+    out["corner quadrant"] = corner
+    yy, xx = np.mgrid[:480, :640]
+    tilted = _grey()
+    tilted[(xx - 320) * math.cos(0.5) + (yy - 240) * math.sin(0.5) > 0] = (30, 30, 220)
+    out["tilted half"] = tilted
+    vertical, horizontal = np.zeros((480, 640, 3), np.uint8), np.zeros((480, 640, 3), np.uint8)
+    vertical[..., :2], horizontal[..., :2] = 30, 30
+    vertical[..., 2] = np.linspace(0, 255, 480).astype(np.uint8)[:, None]
+    horizontal[..., 2] = np.linspace(255, 0, 640).astype(np.uint8)[None, :]
+    out["vertical gradient"], out["horizontal gradient"] = vertical, horizontal
+    stripes = _grey()
+    stripes[(xx // 40) % 2 == 0] = (30, 30, 220)
+    out["stripes"] = stripes
+    full = np.zeros((480, 640, 3), np.uint8)
+    full[..., 2] = 255
+    out["full frame"] = full
+    return out
+
+
+@pytest.mark.parametrize("mitigation", ["none", "shape", "gate", "gate+shape"])
+@pytest.mark.parametrize("name", list(_tints()))
+def test_a_tint_or_gradient_is_not_the_target(name: str, mitigation: str) -> None:
+    img = _tints()[name]
+    assert np.count_nonzero(color_filter(img)) > 0.1 * img.shape[0] * img.shape[1]  # red is there
+    assert RedTargetDetector(RedTargetDetectorConfig(mitigation=mitigation)).detect(img, 0.0) == []
+    # the rim check is what rejects the half frames and gradients (the paper's rule took them)
+    if name != "full frame":
+        off = RedTargetDetectorConfig(mitigation="none", min_arc_sagitta_frac=0.0)
+        assert len(RedTargetDetector(off).detect(img, 0.0)) == 1
+
+
+def _cut_disc(side: str, offset: float, along: float, r: int) -> tuple[np.ndarray, tuple[float, float]]:
+    """A red disc of radius ``r`` (px) whose centre lies ``offset * r`` inside the ``side`` border (negative:
+    outside the frame), at ``along`` of the way along that border; and its true centre."""
+    h, w = 480, 640
+    cx, cy = {
+        "left": (offset * r, along * h),
+        "right": (w - 1 - offset * r, along * h),
+        "top": (along * w, offset * r),
+        "bottom": (along * w, h - 1 - offset * r),
+    }[side]
+    img = _grey()
+    cv2.circle(img, (round(cx), round(cy)), r, TARGET_BGR, -1, cv2.LINE_AA)
+    return img, (cx, cy)
+
+
+@pytest.mark.parametrize("side", ["left", "right", "top", "bottom"])
+@pytest.mark.parametrize(
+    ("r", "offset"), [(40, 0.0), (40, 0.5), (100, -0.3), (150, 0.0), (150, 0.6), (300, 0.2)]
+)
+@pytest.mark.parametrize("along", [0.3, 0.5])
+def test_a_disc_cut_by_each_border_is_still_found(side: str, r: int, offset: float, along: float) -> None:
+    img, _ = _cut_disc(side, offset, along, r)
+    obs = RedTargetDetector().detect(img, 0.0)
+    assert len(obs) == 1
+    assert obs[0].area_px == pytest.approx(np.count_nonzero(color_filter(img)), rel=0.02)
+
+
+@pytest.mark.parametrize(
+    ("centre", "r"),
+    [((-700, 240), 1000), ((320, -900), 1200), ((-400, -300), 900), ((1100, 240), 800), ((-2300, 240), 2500)],
+)
+def test_the_last_metre_a_disc_filling_most_of_the_view(centre: tuple[int, int], r: int) -> None:
+    """The pad from close by: a disc larger than the frame, cut by one, two or three borders; the rim in
+    view is an arc even for a radius of 2,500 px (sagitta 11.5 px over the frame's height)."""
+    img = _grey()
+    cv2.circle(img, centre, r, TARGET_BGR, -1, cv2.LINE_AA)
+    frac = np.count_nonzero(color_filter(img)) / (480 * 640)
+    assert 0.3 < frac < 0.999
+    assert len(RedTargetDetector().detect(img, 0.0)) == 1
+
+
+@pytest.mark.parametrize("aspect", [1.5, 2.5, 3.8])
+@pytest.mark.parametrize("angle_deg", [0, 30, 60, 90])
+def test_an_oblique_disc_an_ellipse_cut_by_the_border_is_found(aspect: float, angle_deg: int) -> None:
+    img = _grey()
+    cv2.ellipse(img, (40, 240), (150, round(150 / aspect)), angle_deg, 0, 360, TARGET_BGR, -1, cv2.LINE_AA)
+    assert len(RedTargetDetector().detect(img, 0.0)) == 1
+
+
+def test_rim_is_arc_on_closed_forms() -> None:
+    """An arc of a circle passes from either side's blob only when the blob is the disc; a straight line,
+    an L and a ragged line do not."""
+    from alight.perception.color_filter import rim_is_arc
+
+    phi = np.linspace(-0.6, 0.6, 400)
+    arc = np.column_stack([500 * np.cos(phi), 500 * np.sin(phi)])  # a disc of radius 500 around 0
+    assert rim_is_arc(arc, np.array([300.0, 0.0]), 0.02)
+    assert not rim_is_arc(arc, np.array([700.0, 0.0]), 0.02)  # the blob outside the circle
+    line = np.column_stack([np.zeros(400), np.linspace(0, 479, 400)])
+    assert not rim_is_arc(line, np.array([-100.0, 240.0]), 0.02)
+    corner = np.vstack(
+        [
+            np.column_stack([np.zeros(200), np.linspace(0, 200, 200)]),
+            np.column_stack([np.linspace(0, 200, 200), np.full(200, 200.0)]),
+        ]
+    )
+    assert not rim_is_arc(corner, np.array([100.0, 100.0]), 0.02)
+    ragged = line + np.column_stack([np.random.default_rng(3).normal(0, 4, 400), np.zeros(400)])
+    assert not rim_is_arc(ragged, np.array([-100.0, 240.0]), 0.02)

@@ -305,6 +305,8 @@ def open_recording(path: str | Path, mapping: ReplayMapping | None = None) -> Re
         raise ReplayError(f"{p}: no such file or directory")
     if p.is_file() and p.stat().st_size == 0:
         raise ReplayError(f"{p}: empty file")
+    if p.is_dir():
+        _check_bag_dir(p)
     if p.suffix.lower() == ".ulg":
         return _open_ulog(p, m.ulog)
     if p.is_dir() or p.suffix.lower() in (".bag", ".db3", ".mcap"):
@@ -359,8 +361,36 @@ def _open_ulog(path: Path, m: UlogMapping) -> Recording:
         raise ReplayError(f"{path}: cannot use the ULog's topics ({_describe(err)})") from None
     if getattr(ulog, "file_corruption", False):
         rec.warnings.append("pyulog found the file damaged (truncated or corrupt); replayed what it read")
+    cut = ulog_cut_at(path)
+    if cut is not None:
+        rec.warnings.append(
+            f"the log ends early: its last message is cut off at byte {cut} of {path.stat().st_size} (a "
+            "copy or a recording stopped short); replayed what precedes it"
+        )
     rec.warnings += sorted({line.strip() for line in chatter.getvalue().splitlines() if line.strip()})[:5]
     return rec
+
+
+ULOG_HEADER_BYTES = 16
+"""A ULog file starts with a 16-byte header (magic, version, timestamp); then messages, each a 3-byte
+header (``uint16`` payload size, ``uint8`` type) and its payload."""
+
+
+def ulog_cut_at(path: Path) -> int | None:
+    """The offset of the last, incomplete message of the ULog at ``path`` when the file ends inside it (a
+    log cut short: pyulog reads up to there and says nothing), else None. Walks the message headers only;
+    a file cut exactly between two messages cannot be told from a complete one."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    offset = ULOG_HEADER_BYTES
+    while offset + 3 <= len(data):
+        size = int.from_bytes(data[offset : offset + 2], "little")
+        if offset + 3 + size > len(data):
+            return offset
+        offset += 3 + size
+    return None if offset == len(data) else offset
 
 
 def _ulog_topic(ulog: Any, name: str, multi_id: int) -> Mapping[str, np.ndarray] | None:
@@ -550,6 +580,19 @@ _ACCEPTED: dict[Stream, tuple[str, ...]] = {
 }
 
 
+def _check_bag_dir(p: Path) -> None:
+    """Refuse, in one line, a directory that cannot be a ROS 2 bag: unreadable, empty, or without the
+    ``metadata.yaml`` rosbags reads first (it raised a 34-line traceback)."""
+    try:
+        names = sorted(e.name for e in p.iterdir())
+    except OSError as err:
+        raise ReplayError(f"{p}: cannot read the directory ({err.strerror})") from None
+    if not names:
+        raise ReplayError(f"{p}: empty directory (expected a ROS 2 bag: metadata.yaml and its .db3 or .mcap)")
+    if "metadata.yaml" not in names:
+        raise ReplayError(f"{p}: not a ROS 2 bag directory (no metadata.yaml)")
+
+
 def _bag_paths(p: Path) -> tuple[list[Path], str]:
     if p.suffix.lower() == ".bag":
         return [p], "ros1"
@@ -565,9 +608,9 @@ def _open_bag(path: Path, m: RosMapping) -> Recording:
     AnyReader = need("rosbags.highlevel").AnyReader
 
     paths, fmt = _bag_paths(path)
-    reader: Any = AnyReader(paths)
     salvaged = ""
     try:
+        reader: Any = AnyReader(paths)
         reader.open()
     except Exception as err:  # noqa: BLE001 - rosbags raises its own errors, sqlite3's, mcap's, OSError
         reason = _describe(err)

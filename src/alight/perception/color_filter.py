@@ -73,6 +73,17 @@ it, two checks on the candidate alone:
   colour filter. A target lies on a background of another colour (its band is empty); a speckle of noise
   is surrounded by other speckles as red as itself (20-60 % of the band on noise frames). A distractor
   that touches the band takes part of it, so the bound is a fraction, not zero.
+- *a disc cut by the border* (``min_arc_sagitta_frac``): a candidate that touches the image border must
+  have a rim (its boundary inside the image) that is an arc of a circle or of an ellipse around it
+  (:func:`rim_is_arc`): curved (sagitta at least 3 px and 2 % of the chord), fitted to 1 px RMS and 3
+  times better than by a straight line, the candidate inside the curve. A half-frame tint, a corner of
+  red, a stripe or the region above an iso-line of a red gradient has a straight or angular rim and is
+  not the target (each came out at quality 1.0, also with ``shape``). The last metre of a landing keeps
+  its target: the pad's rim in view is an arc whatever the border cuts, for a disc of radius up to
+  about 3,000 px in a 640x480 frame (a rim across the frame's height then has a sagitta of 9.6 px, the 2 %
+  bound); a disc much larger than the frame shows an edge as straight as a tint's.
+  Decided: a candidate with no rim in view (the frame red all over, the pad filling the whole view) is
+  indistinguishable from a tint and gives ``[]``; the estimator predicts through those last frames.
 
 Input: :func:`alight.perception.image_input.as_bgr_u8` (16-bit, float and BGRA images are converted). A
 grey image has no colour to filter: ``detect`` returns ``[]`` for it (the Detector protocol: no exception
@@ -230,6 +241,10 @@ class RedTargetDetectorConfig:
     max_surround_red_frac: float = 0.1
     """In every mode: largest fraction of red (``I_CF``) pixels in the band around the target (1 turns the
     check off)."""
+    min_arc_sagitta_frac: float = 0.02
+    """In every mode, for a target cut by the image border: smallest sagitta of its boundary inside the
+    image, as a fraction of that boundary's length along its chord (0 turns the check off; see "A disc cut
+    by the border" in the module docstring)."""
 
     def __post_init__(self) -> None:
         if self.mitigation not in MITIGATIONS:
@@ -254,7 +269,7 @@ class RedTargetDetectorConfig:
             raise ValueError("min_fill must be <= max_fill")
         if not (math.isfinite(self.gate_radius_px) and self.gate_radius_px > 0):
             raise ValueError(f"gate_radius_px must be finite and > 0, got {self.gate_radius_px}")
-        for name in ("min_inside_boundary_frac", "max_surround_red_frac"):
+        for name in ("min_inside_boundary_frac", "max_surround_red_frac", "min_arc_sagitta_frac"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {v}")
@@ -325,6 +340,90 @@ def region_moments(mask: NDArray[np.uint8], contour: NDArray[np.int32]) -> tuple
     if not mo["m00"] > 0:
         return np.full(2, np.nan), 0.0
     return np.array([mo["m10"] / mo["m00"] + x, mo["m01"] / mo["m00"] + y]), float(mo["m00"])
+
+
+def _edge_points(closed: NDArray[np.int32], seg: NDArray[np.int32], keep: NDArray[np.bool_]) -> FloatArray:
+    """The pixel centres along the kept edges of the closed polygon ``closed`` (N + 1, 2), one per pixel
+    step (``seg`` the edges' Chebyshev lengths): CHAIN_APPROX_SIMPLE left only the ends of straight runs."""
+    a = closed[:-1][keep].astype(np.float64)
+    d = closed[1:][keep].astype(np.float64) - a
+    n = np.maximum(seg[keep], 1)
+    idx = np.repeat(np.arange(len(n)), n)
+    frac = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    return cast(FloatArray, a[idx] + frac[:, None] * d[idx])
+
+
+def _circle_fit(q: FloatArray, centroid: FloatArray, max_aspect: float) -> tuple[float, bool]:
+    """RMS geometric residual (px) of Kasa's algebraic circle fit to the points ``q`` (N, 2) and whether
+    ``centroid`` (2,) is inside the circle; ``(inf, False)`` for a degenerate fit (``max_aspect``: unused,
+    the ellipse's signature)."""
+    A = np.column_stack([q, np.ones(len(q))])  # x^2 + y^2 + a x + b y + e = 0
+    sol, *_ = np.linalg.lstsq(A, -(q * q).sum(axis=1), rcond=None)
+    centre = -0.5 * sol[:2]
+    r2 = float(centre @ centre - sol[2])
+    if not (math.isfinite(r2) and r2 > 0.0):
+        return math.inf, False
+    radius = math.sqrt(r2)
+    rms = float(np.sqrt(np.mean((np.hypot(q[:, 0] - centre[0], q[:, 1] - centre[1]) - radius) ** 2)))
+    return rms, bool(np.hypot(*(centroid - centre)) < radius)
+
+
+def _ellipse_fit(q: FloatArray, centroid: FloatArray, max_aspect: float) -> tuple[float, bool]:
+    """RMS Sampson distance (px) of ``cv2.fitEllipseDirect`` to the points ``q`` (N, 2) and whether
+    ``centroid`` (2,) is inside the ellipse; ``(inf, False)`` for a degenerate fit or one longer than
+    ``max_aspect`` times its width (two parallel edges of a stripe fit a very long ellipse)."""
+    (ex, ey), (w, h), angle_deg = cv2.fitEllipseDirect(q.astype(np.float32))
+    if not (w > 0.0 and h > 0.0 and math.isfinite(w * h) and max(w, h) <= max_aspect * min(w, h)):
+        return math.inf, False
+    a2, b2 = (0.5 * w) ** 2, (0.5 * h) ** 2
+    ca, sa = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    p = np.vstack([q, centroid.reshape(1, 2)])
+    u = (p[:, 0] - ex) * ca + (p[:, 1] - ey) * sa
+    v = -(p[:, 0] - ex) * sa + (p[:, 1] - ey) * ca
+    F = u * u / a2 + v * v / b2 - 1.0  # the implicit function, and its gradient's norm for Sampson's
+    grad = 2.0 * np.hypot(u / a2, v / b2)
+    rms = float(np.sqrt(np.mean((F[:-1] / np.maximum(grad[:-1], 1e-12)) ** 2)))
+    return rms, bool(F[-1] < 0.0)
+
+
+def rim_is_arc(
+    p_px: FloatArray, centroid_px: FloatArray, min_sagitta_frac: float, max_aspect: float = 4.5
+) -> bool:
+    """Whether the boundary points ``p_px`` (N, 2) of a blob cut by the image border (the part inside the
+    image) are an arc of a circle or an ellipse around the blob (centroid ``centroid_px``; a disc's image
+    is one), not a straight or ragged line: (1) curved, their spread across their best straight line (the
+    sagitta) at least ``max(MIN_SAGITTA_PX, min_sagitta_frac * chord)``; (2) a circle (Kasa's fit, stable
+    on a short arc) or an ellipse (``cv2.fitEllipseDirect``, a disc seen obliquely) fits them at least
+    ``ARC_FIT_GAIN`` times better (RMS) than that line and to at most ``ARC_MAX_RMS_PX`` (two straight
+    edges meeting at a corner are neither), (3) with the blob's centroid inside it (the blob is the disc,
+    not what is left around one) and (4), an ellipse, no longer than ``max_aspect`` times its width."""
+    if len(p_px) < 5:
+        return False
+    c = p_px.mean(axis=0)
+    q = p_px - c
+    _, _, vt = np.linalg.svd(q, full_matrices=False)
+    along, across = q @ vt[0], q @ vt[1]
+    chord = float(along.max() - along.min())
+    if float(across.max() - across.min()) < max(MIN_SAGITTA_PX, min_sagitta_frac * chord):
+        return False
+    rms_line = float(np.sqrt(np.mean(across**2)))
+    for fit in (_circle_fit, _ellipse_fit):
+        rms, inside = fit(q, centroid_px - c, max_aspect)
+        if inside and rms <= ARC_MAX_RMS_PX and rms * ARC_FIT_GAIN <= rms_line:
+            return True
+    return False
+
+
+MIN_SAGITTA_PX = 3.0
+"""Smallest sagitta (px) of a rim cut by the border: a digital straight edge, even a ragged one after a
+threshold, spreads 1-2 px across its line."""
+ARC_MAX_RMS_PX = 1.0
+"""Largest RMS residual (px) of the circle or ellipse on a cut rim: a disc's rim, thresholded from an
+anti-aliased or blurred image, is fitted to a fraction of a pixel."""
+ARC_FIT_GAIN = 3.0
+"""How many times smaller an ellipse's RMS residual must be than the straight line's on a cut rim: the
+arc of a disc's image is fitted to a fraction of a pixel, a ragged line is not helped by the extra
+parameters."""
 
 
 class RedTargetDetector:
@@ -446,19 +545,23 @@ class RedTargetDetector:
         c = self.config
         H, W = m.shape
         x, y, w, h = cv2.boundingRect(blob.contour)
+        pts = blob.contour.reshape(-1, 2)
+        # CHAIN_APPROX_SIMPLE keeps only the ends of straight runs: walk the polygon's edges instead
+        closed = np.concatenate([pts, pts[:1]])
+        seg = np.abs(np.diff(closed, axis=0)).max(axis=1)
+        on_border = (
+            ((closed[:-1, 0] == 0) & (closed[1:, 0] == 0))
+            | ((closed[:-1, 0] == W - 1) & (closed[1:, 0] == W - 1))
+            | ((closed[:-1, 1] == 0) & (closed[1:, 1] == 0))
+            | ((closed[:-1, 1] == H - 1) & (closed[1:, 1] == H - 1))
+        )
+        total = float(seg.sum())
         if c.min_inside_boundary_frac > 0.0:
-            pts = blob.contour.reshape(-1, 2)
-            # CHAIN_APPROX_SIMPLE keeps only the ends of straight runs: walk the polygon's edges instead
-            closed = np.concatenate([pts, pts[:1]])
-            seg = np.abs(np.diff(closed, axis=0)).max(axis=1)
-            on_border = (
-                ((closed[:-1, 0] == 0) & (closed[1:, 0] == 0))
-                | ((closed[:-1, 0] == W - 1) & (closed[1:, 0] == W - 1))
-                | ((closed[:-1, 1] == 0) & (closed[1:, 1] == 0))
-                | ((closed[:-1, 1] == H - 1) & (closed[1:, 1] == H - 1))
-            )
-            total = float(seg.sum())
             if total > 0.0 and float(seg[~on_border].sum()) < c.min_inside_boundary_frac * total:
+                return False
+        if c.min_arc_sagitta_frac > 0.0 and bool(on_border.any()):
+            inside = _edge_points(closed, seg, ~on_border)
+            if not rim_is_arc(inside, blob.centroid, c.min_arc_sagitta_frac, c.max_aspect):
                 return False
         if c.max_surround_red_frac < 1.0:
             band = max(4, round(0.25 * math.sqrt(blob.area_px)))

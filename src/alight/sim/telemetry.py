@@ -26,7 +26,7 @@ import numpy as np
 from pydantic import Field
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 
-from alight.settings import SETTINGS, NonNegFloat, PositiveFloat, Probability
+from alight.settings import SETTINGS, NonNegFloat, Probability, RateHz
 from alight.types import FloatArray
 
 
@@ -34,7 +34,7 @@ from alight.types import FloatArray
 class TelemetryConfig:
     """The platform's own GNSS fix, broadcast to the aircraft; the scenario's ``platform.telemetry``."""
 
-    rate_hz: PositiveFloat = 10.0
+    rate_hz: RateHz = 10.0
     """Fixes per second (Hz)."""
     noise_m: NonNegFloat = 0.5
     """Per-axis standard deviation of the white position noise (m)."""
