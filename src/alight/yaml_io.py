@@ -3,6 +3,7 @@ loader, so every file refuses a key given twice and reports bad YAML the same wa
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -70,4 +71,27 @@ def read_yaml_file(
     return load_yaml_text(text, where, what, allow_empty=allow_empty), text
 
 
-__all__ = ["UniqueKeyLoader", "load_yaml_text", "read_yaml_file"]
+def unwrap_quantities(data: Any, units: Mapping[str, str]) -> Any:
+    """A data file's ``key: {value: V, unit: U, source: S}`` -> ``key: V`` once ``U`` is ``units[key]``
+    (the airframe and vessel files give each physical value with its unit and its source); a value given
+    plainly stays as it is. A wrong unit or an unknown sub-key is a ``ValueError`` (pydantic's
+    validators turn it into a one-line refusal)."""
+    if not isinstance(data, dict):
+        return data
+    out = dict(data)
+    for key, item in data.items():
+        if key not in units or not isinstance(item, dict):
+            continue
+        unknown = sorted(set(item) - {"value", "unit", "source"})
+        if unknown:
+            raise ValueError(f"{key}: unknown key(s) {unknown}, expected value, unit, source")
+        if "value" not in item:
+            raise ValueError(f"{key}: a mapping needs 'value'")
+        unit = item.get("unit", units[key])
+        if str(unit) != units[key]:
+            raise ValueError(f"{key}: unit must be '{units[key]}', got '{unit}'")
+        out[key] = item["value"]
+    return out
+
+
+__all__ = ["UniqueKeyLoader", "load_yaml_text", "read_yaml_file", "unwrap_quantities"]

@@ -38,7 +38,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from alight.airframe import Airframe
 from alight.errors import ConfigError
 from alight.types import GRAVITY_MPS2
-from alight.yaml_io import read_yaml_file
+from alight.yaml_io import read_yaml_file, unwrap_quantities
 
 __all__ = ["MIN_THRUST_TO_WEIGHT", "UNITS", "load_airframe", "packaged_airframes", "read_airframe_file"]
 
@@ -94,22 +94,7 @@ class AirframeFile(BaseModel):
     @classmethod
     def _unwrap(cls, data: Any) -> Any:
         """``key: {value: V, unit: U, source: S}`` -> ``key: V`` once U is the key's unit."""
-        if not isinstance(data, dict):
-            return data
-        out = dict(data)
-        for key, item in data.items():
-            if key not in UNITS or not isinstance(item, dict):
-                continue
-            unknown = sorted(set(item) - {"value", "unit", "source"})
-            if unknown:
-                raise ValueError(f"{key}: unknown key(s) {unknown}, expected value, unit, source")
-            if "value" not in item:
-                raise ValueError(f"{key}: a mapping needs 'value'")
-            unit = item.get("unit", UNITS[key])
-            if str(unit) != UNITS[key]:
-                raise ValueError(f"{key}: unit must be '{UNITS[key]}', got '{unit}'")
-            out[key] = item["value"]
-        return out
+        return unwrap_quantities(data, UNITS)
 
     @model_validator(mode="after")
     def _physical(self) -> AirframeFile:

@@ -30,7 +30,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from alight.errors import ConfigError
-from alight.yaml_io import read_yaml_file
+from alight.yaml_io import read_yaml_file, unwrap_quantities
 
 __all__ = ["UNITS", "Vessel", "load_vessel", "packaged_vessels", "read_vessel_file"]
 
@@ -104,22 +104,7 @@ class VesselFile(BaseModel):
     @classmethod
     def _unwrap(cls, data: Any) -> Any:
         """``key: {value: V, unit: U, source: S}`` -> ``key: V`` once U is the key's unit."""
-        if not isinstance(data, dict):
-            return data
-        out = dict(data)
-        for key, item in data.items():
-            if key not in UNITS or not isinstance(item, dict):
-                continue
-            unknown = sorted(set(item) - {"value", "unit", "source"})
-            if unknown:
-                raise ValueError(f"{key}: unknown key(s) {unknown}, expected value, unit, source")
-            if "value" not in item:
-                raise ValueError(f"{key}: a mapping needs 'value'")
-            unit = item.get("unit", UNITS[key])
-            if str(unit) != UNITS[key]:
-                raise ValueError(f"{key}: unit must be '{UNITS[key]}', got '{unit}'")
-            out[key] = item["value"]
-        return out
+        return unwrap_quantities(data, UNITS)
 
     @model_validator(mode="after")
     def _physical(self) -> VesselFile:
