@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from pydantic import ValidationError
 
 from alight.errors import ConfigError
 
@@ -94,4 +95,16 @@ def unwrap_quantities(data: Any, units: Mapping[str, str]) -> Any:
     return out
 
 
-__all__ = ["UniqueKeyLoader", "load_yaml_text", "read_yaml_file", "unwrap_quantities"]
+def data_file_error(source: str, err: ValidationError) -> str:
+    """One line for a data file (airframe, vessel) that pydantic refused: the first error's key, message
+    and value, and how many more there are."""
+    first = err.errors()[0]
+    where = ".".join(str(p) for p in first["loc"])
+    msg = first["msg"].removeprefix("Value error, ")
+    got = first.get("input")
+    shown = "" if isinstance(got, dict | list) or got is None or not where else f", got {got!r}"
+    extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    return f"{source}: {where + ': ' if where else ''}{msg}{shown}{extra}"
+
+
+__all__ = ["UniqueKeyLoader", "data_file_error", "load_yaml_text", "read_yaml_file", "unwrap_quantities"]

@@ -38,7 +38,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from alight.airframe import Airframe
 from alight.errors import ConfigError
 from alight.types import GRAVITY_MPS2
-from alight.yaml_io import read_yaml_file, unwrap_quantities
+from alight.yaml_io import data_file_error, read_yaml_file, unwrap_quantities
 
 __all__ = ["MIN_THRUST_TO_WEIGHT", "UNITS", "load_airframe", "packaged_airframes", "read_airframe_file"]
 
@@ -118,16 +118,6 @@ class AirframeFile(BaseModel):
         return Airframe(**fields, max_tilt_rad=math.radians(self.max_tilt_deg))
 
 
-def _format(source: str, err: ValidationError) -> str:
-    first = err.errors()[0]
-    where = ".".join(str(p) for p in first["loc"])
-    msg = first["msg"].removeprefix("Value error, ")
-    got = first.get("input")
-    shown = "" if isinstance(got, dict | list) or got is None or not where else f", got {got!r}"
-    extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
-    return f"{source}: {where + ': ' if where else ''}{msg}{shown}{extra}"
-
-
 def read_airframe_file(path: str | Path) -> AirframeFile:
     """Read and validate an airframe YAML file (the checked contents, before building the Airframe)."""
     p = Path(path)
@@ -137,7 +127,7 @@ def read_airframe_file(path: str | Path) -> AirframeFile:
     try:
         return AirframeFile.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(_format(f"airframe {p}", err)) from None
+        raise ConfigError(data_file_error(f"airframe {p}", err)) from None
 
 
 def _package_dir() -> Path:

@@ -30,7 +30,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from alight.errors import ConfigError
-from alight.yaml_io import read_yaml_file, unwrap_quantities
+from alight.yaml_io import data_file_error, read_yaml_file, unwrap_quantities
 
 __all__ = ["UNITS", "Vessel", "load_vessel", "packaged_vessels", "read_vessel_file"]
 
@@ -125,16 +125,6 @@ class VesselFile(BaseModel):
         return Vessel(name=self.name or name, **fields)
 
 
-def _format(source: str, err: ValidationError) -> str:
-    first = err.errors()[0]
-    where = ".".join(str(p) for p in first["loc"])
-    msg = first["msg"].removeprefix("Value error, ")
-    got = first.get("input")
-    shown = "" if isinstance(got, dict | list) or got is None or not where else f", got {got!r}"
-    extra = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
-    return f"{source}: {where + ': ' if where else ''}{msg}{shown}{extra}"
-
-
 def read_vessel_file(path: str | Path) -> Vessel:
     """Read and validate a vessel YAML file."""
     p = Path(path)
@@ -146,7 +136,7 @@ def read_vessel_file(path: str | Path) -> Vessel:
     try:
         return VesselFile.model_validate(data).vessel(p.stem)
     except ValidationError as err:
-        raise ConfigError(_format(f"vessel {p}", err)) from None
+        raise ConfigError(data_file_error(f"vessel {p}", err)) from None
 
 
 def _package_dir() -> Path:
