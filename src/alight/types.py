@@ -15,8 +15,10 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 # The frame helpers live in alight.numerics.rotation (one implementation for kernels and Python); they
 # are re-exported here, where the messages that use them are.
@@ -26,6 +28,14 @@ from alight.numerics.rotation import rot_z as rot_z
 from alight.numerics.rotation import rotmat_to_quat as rotmat_to_quat
 from alight.numerics.rotation import wrap_angle as wrap_angle
 from alight.numerics.rotation import yaw_of as yaw_of
+
+U8Array = NDArray[np.uint8]
+"""An 8-bit image or mask: grey (H, W) or BGR (H, W, 3)."""
+
+Image = NDArray[Any]
+"""A camera frame as handed to a detector: a numeric array, grey (H, W) or colour (H, W, C) with C in 1, 3
+or 4 (BGR, BGRA), of any numeric dtype. :mod:`alight.perception.image_input` is the one reading of it
+(uint8 unchanged; other dtypes scaled; anything that is not an image gives no observation)."""
 
 GRAVITY_MPS2 = 9.81
 """Magnitude of gravity; ``g_W = (0, 0, -GRAVITY_MPS2)`` in the z-up world."""

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pytest
@@ -19,7 +18,7 @@ from alight.mission.blocks import BLOCKS, register_block, unregister_block
 from alight.perception import Detector, DetectorContext
 from alight.perception.detect_cli import detector_names, make_detector
 from alight.scenario import scenario_from_dict
-from alight.types import Observation, PlatformMeasurement
+from alight.types import Image, Observation, PlatformMeasurement
 
 # -- a platform estimator: paper 000's EKF that counts the measurements it is given ----------------------
 
@@ -69,7 +68,7 @@ class RedCentroidDetector:
     def __init__(self, params: RedCentroidParams) -> None:
         self.params = params
 
-    def detect(self, image: Any, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         RedCentroidDetector.calls += 1
         img = np.asarray(image)
         if img.ndim != 3 or img.shape[2] != 3 or img.size == 0:

@@ -43,6 +43,10 @@ class CameraModel(Protocol):
         """Unit rays in C through pixels, shape (N, 2) -> (N, 3); NaN rows where there is none."""
         ...
 
+    def fov_rad(self) -> tuple[float, float]:
+        """(horizontal, vertical) full field of view (rad)."""
+        ...
+
 
 LOADERS: dict[str, Callable[[str], CameraModel]] = {
     ".yml": PinholeCamera.from_opencv_yaml,

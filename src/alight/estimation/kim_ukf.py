@@ -78,6 +78,7 @@ import numpy as np
 from numba import njit
 from scipy.special import chdtri
 
+from alight.cameras import CameraModel
 from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.errors import ConfigError, EstimationError
@@ -249,7 +250,7 @@ def kim_fisheye_h(X: FloatArray, H: float, lens: OmniCamera, rho_ref: float) -> 
     return out
 
 
-def kim_camera_h(X: FloatArray, H: float, camera: Any) -> FloatArray:
+def kim_camera_h(X: FloatArray, H: float, camera: CameraModel) -> FloatArray:
     """The measurement through any camera model's ``project``: sigma points (m, 7) -> pixels (m, 2)."""
     R = rotation_zyx(X[:, 4:7])
     x_W = np.stack([X[:, 0], X[:, 1], np.full(X.shape[0], -H)], axis=1)
@@ -548,7 +549,11 @@ class KimUkf:
     """
 
     def __init__(
-        self, config: KimUkfConfig | None = None, *, camera: Any = None, mount: CameraMount | None = None
+        self,
+        config: KimUkfConfig | None = None,
+        *,
+        camera: CameraModel | None = None,
+        mount: CameraMount | None = None,
     ) -> None:
         self.config = config if config is not None else KimUkfConfig()
         c = self.config
@@ -862,6 +867,8 @@ class KimUkf:
 
     def _unproject(self, pixels: FloatArray) -> FloatArray:
         cam = self.lens if self.lens is not None else self.camera
+        if cam is None:
+            raise ConfigError("KimUkf: pixel rays need a camera model (camera=...)")
         return np.asarray(cam.unproject(pixels), dtype=np.float64)
 
     def flat_earth_prior(

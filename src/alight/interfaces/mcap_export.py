@@ -26,7 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from alight.cameras.pinhole import PinholeCamera
+from alight.cameras import CameraModel
+from alight.cameras.pinhole import CameraMount, PinholeCamera
 from alight.errors import ReplayError
 from alight.evaluation.log import log_channel
 from alight.types import Observation
@@ -90,7 +91,9 @@ class McapExporter:
         mount: the camera's mount (``R_BC``, ``p_BC``): a ``uav`` -> ``camera`` transform in ``/tf``.
     """
 
-    def __init__(self, path: str | Path, *, camera: Any = None, mount: Any = None) -> None:
+    def __init__(
+        self, path: str | Path, *, camera: CameraModel | None = None, mount: CameraMount | None = None
+    ) -> None:
         from alight.interfaces.replay_readers import need
 
         need("mcap")
@@ -125,7 +128,7 @@ class McapExporter:
         self._mount = mount
         self._closed = False
 
-    def _calibration_msg(self, camera: Any) -> Any:
+    def _calibration_msg(self, camera: CameraModel | None) -> Any:
         if not isinstance(camera, PinholeCamera):
             return None  # not a pinhole camera (an omnidirectional model has no CameraCalibration)
         K = camera.K

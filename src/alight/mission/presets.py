@@ -84,7 +84,7 @@ VIEW_TILT_ALLOWANCE_RAD = math.radians(5.0)
 :func:`visibility_commit_height_m`."""
 
 
-def visibility_commit_height_m(pad: Any, camera: Any) -> float | None:
+def visibility_commit_height_m(pad: Any, camera: CameraModel | None) -> float | None:
     """The height above the pad (m) below which ``camera`` (looking straight down) can no longer see the
     part of ``pad`` its detectors need whole, with :data:`VIEW_TILT_ALLOWANCE_RAD` of the half field of
     view kept for the vehicle's tilt: a descent must commit (go on blind, on the estimate) by then, or
@@ -131,7 +131,7 @@ def _mission_config(
     return MissionConfig(touchdown=TouchdownConfig(hover_thrust_N=hover_thrust_N, **td), **given)
 
 
-def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
+def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: CameraModel | None) -> float:
     """The field of view that spaces the exploration pattern (the preset's ``coverage_fov_deg``: a value
     in deg, ``camera`` for the camera model's narrower field, ``perception`` for the ground-truth
     sensor's)."""
@@ -146,7 +146,7 @@ def _coverage_fov_rad(s: Any, eff: EffectiveBlocks, camera: Any) -> float:
     return math.radians(float(fov))
 
 
-def _wide_view_axis_B_rad(s: Any, camera: Any, mount: CameraMount) -> float:
+def _wide_view_axis_B_rad(s: Any, camera: CameraModel | None, mount: CameraMount) -> float:
     """Direction in the body's xy plane (rad from body x toward body y) of the camera's wider field of
     view: the image x axis (columns) when the horizontal field is the wider, else the image y axis,
     carried into B by the mount. For the ground-truth sensor its ``perception.fov_deg`` on the same

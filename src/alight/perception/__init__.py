@@ -37,7 +37,7 @@ from alight.perception.nfold import NFoldConfig, NFoldDetector
 from alight.perception.pnp import PnpResult, solve_pnp
 from alight.perception.registry import DETECTORS, GEOLOCATORS, DetectorContext, DetectorSpec, GeolocatorSpec
 from alight.perception.sdu_marker import SduMarkerDetector
-from alight.types import FloatArray, Observation, PlatformMeasurement
+from alight.types import FloatArray, Image, Observation, PlatformMeasurement
 
 if TYPE_CHECKING:  # for annotations only
     from alight.energy import QosEnergyModel
@@ -47,9 +47,10 @@ if TYPE_CHECKING:  # for annotations only
 class Detector(Protocol):
     """Finds the pad (or its markers) in one image."""
 
-    def detect(self, image: Any, t: float) -> list[Observation]:
-        """Observations in ``image`` (grey or BGR uint8, shape (H, W) or (H, W, 3)) captured at ``t`` (s);
-        ``[]`` when nothing is found. Must not raise on an empty, tiny or uniform image."""
+    def detect(self, image: Image, t: float) -> list[Observation]:
+        """Observations in ``image`` (:data:`alight.types.Image`: grey or colour, any numeric dtype, read
+        by :mod:`alight.perception.image_input`) captured at ``t`` (s); ``[]`` when nothing is found or
+        ``image`` is not an image. Must not raise on an empty, tiny or uniform image."""
         ...
 
 

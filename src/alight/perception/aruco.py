@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from alight.perception.image_input import as_gray_u8, check_time
-from alight.types import FloatArray, Observation
+from alight.types import FloatArray, Image, Observation
 
 DICTIONARIES: dict[str, int] = {
     name: int(getattr(cv2.aruco, name)) for name in dir(cv2.aruco) if name.startswith("DICT_")
@@ -103,7 +103,7 @@ class ArucoPadDetector:
             return [], []
         return [np.asarray(c, dtype=np.float64).reshape(4, 2) for c in corners], [int(i) for i in ids.ravel()]
 
-    def detect(self, image: object, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         """One observation per marker (kind ``aruco:ID``), sorted by id; ``[]`` when there is none or the
         image is unusable (:mod:`alight.perception.image_input`)."""
         t = check_time(t)

@@ -103,7 +103,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from alight.perception.image_input import as_bgr_u8, check_time
-from alight.types import FloatArray, Observation
+from alight.types import FloatArray, Image, Observation
 
 MITIGATIONS = ("none", "gate", "shape", "gate+shape")
 """Values of :attr:`RedTargetDetectorConfig.mitigation`."""
@@ -583,7 +583,7 @@ class RedTargetDetector:
                     return False
         return True
 
-    def detect(self, image: Any, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         """The target in ``image`` captured at ``t`` (s): ``[]`` or one :class:`BlobObservation`."""
         t = check_time(t)
         try:

@@ -84,9 +84,7 @@ from alight.numerics.homography import homography_lsq, map_point
 from alight.numerics.image import bilinear
 from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
-from alight.types import FloatArray, Observation
-
-U8Array = NDArray[np.uint8]
+from alight.types import FloatArray, Observation, U8Array
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -89,9 +89,7 @@ from alight.numerics.runs import link_run, run_roots
 from alight.pads.falanga_tag import FalangaTag
 from alight.perception.falanga_close import CloseRangeCrossDetector
 from alight.perception.image_input import as_gray_u8, check_time
-from alight.types import FloatArray, Observation
-
-U8Array = NDArray[np.uint8]
+from alight.types import FloatArray, Image, Observation, U8Array
 
 STAGES = ("threshold", "contours", "quad", "inner", "ransac")
 """Keys of the stage-time table of :meth:`FalangaTagDetector.detect_timed` (plus ``total``)."""
@@ -904,7 +902,7 @@ class FalangaTagDetector:
 
     # ------------------------------------------------------------------------------------ public API
 
-    def detect(self, image: object, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         """Observations of the tag in ``image`` (grey or BGR uint8 of any size) captured at ``t`` (s): at
         most one; ``[]`` when there is no tag or the image is unusable (empty, tiny, not an image);
         :class:`alight.errors.ImageError` for a non-finite ``t`` or an oversized image

@@ -22,14 +22,13 @@ angle; it is then reported in ``[-pi / yaw_fold, pi / yaw_fold)``, and a consume
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import cv2
 import numpy as np
 
 from alight.cameras.pinhole import CameraMount, camera_pose_W
 from alight.numerics.rotation import wrap_period
-from alight.perception.pnp import PnpResult, solve_pnp
+from alight.perception.pnp import PinholeIntrinsics, PnpResult, solve_pnp
 from alight.types import FloatArray, Observation, PlatformMeasurement, yaw_of
 
 
@@ -89,7 +88,7 @@ class PnpGeolocator:
 
     def __init__(
         self,
-        camera: Any,
+        camera: PinholeIntrinsics,
         mount: CameraMount,
         sigma_px: float = 1.0,
         sigma_ego_pos_m: float = 0.0,

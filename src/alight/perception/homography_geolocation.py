@@ -89,7 +89,8 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 
-from alight.cameras.pinhole import CameraMount, camera_pose_W
+from alight.cameras import CameraModel
+from alight.cameras.pinhole import CameraMount, PinholeCamera, camera_pose_W
 from alight.perception.geolocation import _check_pose, _check_sigmas, level_pad_yaw, skew
 from alight.types import FloatArray, Observation, PlatformMeasurement, rot_z, yaw_of
 
@@ -394,6 +395,22 @@ def ray_plane_point(p_WC: FloatArray, ray_W: FloatArray, plane_z_W: float) -> Fl
 # --------------------------------------------------------------------------------------------------
 
 
+def _virtual_intrinsics(
+    camera: CameraModel, exact: PinholeCamera | None, fov_rad: tuple[float, float] | None
+) -> tuple[float, float, float, float]:
+    """``(fx, fy, cx, cy)`` (px) of the pinhole camera the method amounts to: ``exact``'s own ``K`` in the
+    exact-intrinsics mode, else the virtual camera of the fields of view (steps 2-5, module docstring)."""
+    if exact is not None:
+        K = np.asarray(exact.K, dtype=np.float64)
+        return float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+    W, Hh = int(camera.width), int(camera.height)
+    hfov, vfov = camera.fov_rad() if fov_rad is None else fov_rad
+    if not (0.0 < hfov < math.pi and 0.0 < vfov < math.pi):
+        raise ValueError(f"fields of view must be in (0, pi), got {hfov}, {vfov}")
+    fx, fy = W / (2.0 * math.tan(0.5 * hfov)), Hh / (2.0 * math.tan(0.5 * vfov))
+    return float(fx), float(fy), 0.5 * W - 0.5, 0.5 * Hh - 0.5
+
+
 class HomographyGeolocator:
     """Paper 004's pixel-to-world homography as a :class:`alight.perception.Geolocator`.
 
@@ -439,7 +456,7 @@ class HomographyGeolocator:
 
     def __init__(
         self,
-        camera: Any,
+        camera: CameraModel,
         mount: CameraMount,
         *,
         plane_z_W: float = 0.0,
@@ -471,7 +488,13 @@ class HomographyGeolocator:
             raise ValueError(f"points must be 'first' or 'all', got {points!r}")
         if assume_pad_yaw is not None and not math.isfinite(assume_pad_yaw):
             raise ValueError(f"assume_pad_yaw must be finite or None, got {assume_pad_yaw}")
+        if exact_intrinsics and not isinstance(camera, PinholeCamera):
+            raise ValueError(
+                f"exact_intrinsics needs a pinhole camera model (K and its lens), got {type(camera).__name__}"
+            )
         self.camera = camera
+        self._pinhole: PinholeCamera | None = camera if isinstance(camera, PinholeCamera) else None
+        """The camera as a pinhole model, for the exact-intrinsics mode (None for other models)."""
         self.mount = mount
         self.plane_z_W = float(plane_z_W)
         self.exact_intrinsics = bool(exact_intrinsics)
@@ -494,17 +517,9 @@ class HomographyGeolocator:
             self.landmark_offsets[kind] = o
         W, Hh = int(camera.width), int(camera.height)
         corners_px = np.array([[-0.5, -0.5], [W - 0.5, -0.5], [W - 0.5, Hh - 0.5], [-0.5, Hh - 0.5]])
-        if self.exact_intrinsics:
-            K = np.asarray(camera.K, dtype=np.float64)
-            fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
-        else:
-            hfov, vfov = camera.fov_rad() if fov_rad is None else fov_rad
-            if not (0.0 < hfov < math.pi and 0.0 < vfov < math.pi):
-                raise ValueError(f"fields of view must be in (0, pi), got {hfov}, {vfov}")
-            # the virtual pinhole camera that steps 2-5 amount to (module docstring)
-            fx, fy = W / (2.0 * math.tan(0.5 * hfov)), Hh / (2.0 * math.tan(0.5 * vfov))
-            cx, cy = 0.5 * W - 0.5, 0.5 * Hh - 0.5
-        self._f = (float(fx), float(fy), float(cx), float(cy))
+        exact = self._pinhole if self.exact_intrinsics else None
+        self._f = _virtual_intrinsics(camera, exact, fov_rad)
+        fx, fy, cx, cy = self._f
         self._corners_px = corners_px
         self._corners_n = np.column_stack([(corners_px[:, 0] - cx) / fx, (corners_px[:, 1] - cy) / fy])
         centre = np.array([cx, cy])
@@ -530,7 +545,8 @@ class HomographyGeolocator:
             xy[:, 0] = (pixels[:, 0] - cx) / fx
             xy[:, 1] = (pixels[:, 1] - cy) / fy
             return pixels, xy
-        xy = self.camera.pixels_to_normalized(pixels)
+        assert self._pinhole is not None  # exact mode is refused for other models in __init__
+        xy = self._pinhole.pixels_to_normalized(pixels)
         if not np.isfinite(xy).all():
             return None
         return np.column_stack([fx * xy[:, 0] + cx, fy * xy[:, 1] + cy]), xy
@@ -648,19 +664,18 @@ class HomographyGeolocator:
         fx, fy, _, _ = self._f
         n = xy.shape[0]
         J = np.zeros((n, 2, 2))
-        if not (self.exact_intrinsics and self.camera.has_distortion):
+        lens = self._pinhole if self.exact_intrinsics else None
+        if lens is None or not lens.has_distortion:
             J[:, 0, 0] = 1.0 / fx
             J[:, 1, 1] = 1.0 / fy
             return J
         # the inverse of the lens map, by central differences
-        px = self.camera.normalized_to_pixels(xy)
+        px = lens.normalized_to_pixels(xy)
         step = 1e-3
         for k in range(2):
             d = np.zeros(2)
             d[k] = step
-            J[:, :, k] = (
-                self.camera.pixels_to_normalized(px + d) - self.camera.pixels_to_normalized(px - d)
-            ) / (2 * step)
+            J[:, :, k] = (lens.pixels_to_normalized(px + d) - lens.pixels_to_normalized(px - d)) / (2 * step)
         return J
 
 

@@ -46,8 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from alight.errors import ImageError
-
-U8Array = NDArray[np.uint8]
+from alight.types import U8Array
 
 MAX_PIXELS = 1 << 26
 """Largest image, in pixels (H x W), a detector accepts: 67,108,864 (8192 x 8192), above any camera we

@@ -88,9 +88,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from alight.perception.image_input import as_gray_u8, check_time
-from alight.types import FloatArray, Observation
+from alight.types import FloatArray, Image, Observation, U8Array
 
-U8Array = NDArray[np.uint8]
 F32Array = NDArray[np.float32]
 
 QUALITY_SLOPE = 0.75
@@ -569,7 +568,7 @@ class NFoldDetector:
 
     # ------------------------------------------------------------------------------------ public API
 
-    def detect(self, image: object, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         """At most one observation (kind ``nfold``): the tip as the single image point, the quality, and
         for an oriented marker ``yaw_CP`` = the missing leg's image angle (the pad's x axis when the leg
         points along it, as on :class:`alight.pads.SduPad`); ``[]`` when no kernel size reaches

@@ -17,11 +17,12 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from alight.cameras import CameraModel
 from alight.energy.qos import PhasePolicy, QosEnergyModel, QosSetting
 from alight.perception.image_input import as_gray_u8
 from alight.perception.nfold import NFoldDetector
 from alight.perception.sdu_marker import SduMarkerDetector
-from alight.types import FloatArray, Mode, Observation
+from alight.types import FloatArray, Image, Mode, Observation
 
 # --------------------------------------------------------------------------------------------------
 # The QoS-aware detector
@@ -33,7 +34,7 @@ class ScaledCamera:
     ``sy = H' / H``, pixel centres mapped as ``u' = (u + 0.5) sx - 0.5``). For detectors that undo lens
     distortion with their camera model while reading a resized image."""
 
-    def __init__(self, camera: Any, width: int, height: int) -> None:
+    def __init__(self, camera: CameraModel, width: int, height: int) -> None:
         self.camera = camera
         self._w, self._h = int(width), int(height)
         self.sx = self._w / float(camera.width)
@@ -51,6 +52,10 @@ class ScaledCamera:
         px = np.asarray(self.camera.project(points_C), dtype=np.float64)
         out: FloatArray = (px + 0.5) * np.array([self.sx, self.sy]) - 0.5
         return out
+
+    def fov_rad(self) -> tuple[float, float]:
+        """The camera's: a resize keeps the field of view."""
+        return self.camera.fov_rad()
 
     def unproject(self, pixels: FloatArray) -> FloatArray:
         full = (np.asarray(pixels, dtype=np.float64) + 0.5) / np.array([self.sx, self.sy]) - 0.5
@@ -225,7 +230,7 @@ class QosDetector:
             self._t_next += period
         self._t_last = t
 
-    def detect(self, image: object, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         """Observations in full-resolution pixels, or ``[]`` for a skipped frame (see ``throttle``)."""
         if self.throttle and not self.due(t):
             self.frames_skipped += 1

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from alight.blockspec import BlockSpec, ResolveContext, param_kwargs, signature_params
-from alight.cameras import CameraModel, MountedCamera
+from alight.cameras import CameraModel, MountedCamera, PinholeCamera
 from alight.energy.qos import DEFAULT_PHASE_POLICY, PhasePolicy
 from alight.errors import ConfigError
 from alight.pads import AprilTagPad, FalangaTag, PadDesign, SduPad
@@ -238,6 +238,8 @@ DETECTORS: dict[str, DetectorSpec] = {
 
 
 def _pnp(p: Any, ctx: MountedCamera) -> Geolocator:
+    if not isinstance(ctx.camera, PinholeCamera):
+        raise ValueError(f"pnp needs a pinhole camera model (K, lens), got {type(ctx.camera).__name__}")
     return PnpGeolocator(ctx.camera, ctx.mount, **param_kwargs(p))
 
 
@@ -248,6 +250,8 @@ def _flat_earth(p: Any, ctx: MountedCamera) -> Geolocator:
 
 
 def _homography(p: Any, ctx: MountedCamera) -> Geolocator:
+    if ctx.camera is None:
+        raise ValueError("homography needs a camera model (its size and field of view)")
     return HomographyGeolocator(ctx.camera, ctx.mount, **param_kwargs(p))
 
 

@@ -65,7 +65,7 @@ from alight.pads.sdu_pad import SduPad
 from alight.perception.aruco import ArucoPadDetector
 from alight.perception.image_input import as_gray_u8, check_time
 from alight.perception.nfold import NFoldConfig, NFoldDetector, NFoldResult
-from alight.types import FloatArray, Observation
+from alight.types import FloatArray, Image, Observation
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,7 +190,7 @@ class SduMarkerDetector:
 
     # ------------------------------------------------------------------------------------ public API
 
-    def detect(self, image: object, t: float) -> list[Observation]:
+    def detect(self, image: Image, t: float) -> list[Observation]:
         """``[Observation(kind="sdu")]`` with the fused landing-marker pixel first (module docstring), or
         ``[]`` when neither the n-fold marker nor any of the pad's ArUco markers is found."""
         det = self.detect_detailed(image, t)
