@@ -14,7 +14,6 @@ flight). The numba cache is warmed first in a separate process, so neither run p
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -26,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from alight.campaign import campaign_from_dict, run_campaign
+from alight.campaign.results import read_rows
 from alight.campaign.spec import VIEWS_PER_CELL
 from alight.campaign.store import BLOCK_TIME_COLUMNS
 
@@ -51,8 +51,7 @@ def _size_mb(root: Path) -> float:
 
 
 def _rows(out: Path) -> dict[str, dict[str, str]]:
-    with (out / "results.csv").open(newline="") as f:
-        return {r["mission_id"]: r for r in csv.DictReader(f)}
+    return {r["mission_id"]: r for r in read_rows(out / "results.csv")}  # the one results.csv reader
 
 
 def _run(root: Path, missions: int, speed: float, views: int | str, workers: int) -> dict[str, Any]:

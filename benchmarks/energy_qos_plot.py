@@ -11,7 +11,6 @@ every setting on the same seeds: ``same_seeds_across``).
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
@@ -21,7 +20,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from alight.campaign.results import read_rows  # noqa: E402
 from alight.campaign.summary import wilson95  # noqa: E402
+from alight.errors import AlightError  # noqa: E402
 
 
 def _label(row: dict[str, str]) -> str:
@@ -40,7 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     if not path.is_file():
         print(f"energy_qos_plot: {path} not found", file=sys.stderr)
         return 2
-    rows = list(csv.DictReader(path.open(encoding="utf-8")))
+    try:
+        rows = read_rows(path)  # the campaign package's one reader of results.csv (checked header and rows)
+    except AlightError as err:
+        print(f"energy_qos_plot: {err}", file=sys.stderr)
+        return 2
     groups: dict[str, list[dict[str, str]]] = {}
     for row in rows:
         groups.setdefault(_label(row), []).append(row)

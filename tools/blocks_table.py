@@ -16,12 +16,14 @@ pad measurement), per block.
 
 from __future__ import annotations
 
-import csv
 import json
 import statistics
 import sys
 from collections import Counter, defaultdict
 from pathlib import Path
+
+from alight.campaign.results import read_rows
+from alight.errors import AlightError
 
 STAGES = ("camera", "pad", "detector", "geolocator", "platform_estimator")
 
@@ -38,7 +40,11 @@ def main(argv: list[str]) -> int:
     if not path.is_file():
         print(f"{path}: no such file (run the campaign first)", file=sys.stderr)
         return 2
-    rows = list(csv.DictReader(path.open(encoding="utf-8")))
+    try:
+        rows = read_rows(path)  # the campaign package's one reader of results.csv (checked header and rows)
+    except AlightError as err:
+        print(err, file=sys.stderr)
+        return 2
     if replicates is not None:
         rows = [r for r in rows if int(r["replicate"]) < replicates]
     by_combo: dict[str, list[dict[str, str]]] = defaultdict(list)

@@ -11,13 +11,13 @@ camera preset``); any other error is counted under ``error``.
 
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from alight.campaign.results import read_rows
 from alight.scenario import FaultSpec
 
 _DEFAULT_FAULTS = FaultSpec().model_dump(mode="json")
@@ -46,8 +46,7 @@ def class_name(params: dict[str, Any]) -> str:
 
 def table(out_dir: Path) -> str:
     lock = json.loads((out_dir / "campaign.lock.json").read_text())
-    with (out_dir / "results.csv").open(newline="") as f:
-        rows = list(csv.DictReader(f))
+    rows = read_rows(out_dir / "results.csv")  # the campaign package's one reader of results.csv
     cond_name = {c["condition_id"]: class_name(c["params"]) for c in lock["conditions"]}
     counts: dict[tuple[str, str], Counter[str]] = {}
     for r in rows:
