@@ -14,10 +14,10 @@ this folder.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 from alight.estimation.ego_ekf import EgoEkf, EgoEkfConfig
-from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
+from alight.estimation.kim_ukf import EgoPose, KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
 from alight.estimation.registry import PLATFORM_ESTIMATORS, PlatformEstimatorSpec
 from alight.estimation.sdu_kf import SduKalmanFilter, SduKfConfig
@@ -73,11 +73,11 @@ class PixelMeasured(Protocol):
     """A platform estimator with an image measurement model (paper 003's UKF): it fuses the detection's
     pixel with the ego state at the capture time, and predicts the pixel for a gating detector."""
 
-    def update_pixel(self, t: float, px: FloatArray, ego: Any) -> bool:
+    def update_pixel(self, t: float, px: FloatArray, ego: EgoPose) -> bool:
         """Fuse the pixel ``(u, v)`` seen at capture time ``t`` (s); True when used."""
         ...
 
-    def predict_pixel(self, t: float, ego: Any, n_sigma: float = 3.0) -> tuple[FloatArray, float] | None:
+    def predict_pixel(self, t: float, ego: EgoPose, n_sigma: float = 3.0) -> tuple[FloatArray, float] | None:
         """The predicted pixel at ``t`` for the ego state then, and a gate radius (px); None without one."""
         ...
 

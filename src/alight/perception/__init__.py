@@ -25,7 +25,7 @@ name -> :class:`alight.blockspec.BlockSpec` (parameters, needs/provides, factory
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from alight.perception.aruco import ArucoPadDetector, merge_observations
 from alight.perception.color_filter import RedTargetDetector, RedTargetDetectorConfig
@@ -37,7 +37,7 @@ from alight.perception.nfold import NFoldConfig, NFoldDetector
 from alight.perception.pnp import PnpResult, solve_pnp
 from alight.perception.registry import DETECTORS, GEOLOCATORS, DetectorContext, DetectorSpec, GeolocatorSpec
 from alight.perception.sdu_marker import SduMarkerDetector
-from alight.types import FloatArray, Image, Observation, PlatformMeasurement
+from alight.types import FloatArray, Image, Mode, Observation, PlatformMeasurement
 
 if TYPE_CHECKING:  # for annotations only
     from alight.energy import QosEnergyModel
@@ -75,7 +75,7 @@ class RangeAware(Protocol):
 class ModeAware(Protocol):
     """A detector whose processing follows the mission phase (quality of service)."""
 
-    def set_mode(self, mode: Any) -> None:
+    def set_mode(self, mode: Mode) -> None:
         """The mission's new :class:`alight.types.Mode` (called at each mode change)."""
         ...
 
