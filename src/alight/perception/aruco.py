@@ -93,7 +93,7 @@ class ArucoPadDetector:
                     raise ValueError(f"pad.marker_corners_P({mid}) must have shape (4, 3), got {c.shape}")
                 self._corners_P[int(mid)] = c
 
-    def detect_markers(self, image: object) -> tuple[list[FloatArray], list[int]]:
+    def detect_markers(self, image: Image) -> tuple[list[FloatArray], list[int]]:
         """Raw detections: corner arrays (4, 2) and ids, in OpenCV's order; empty for an unusable image."""
         gray = as_gray_u8(image)
         if gray is None or min(gray.shape) < 8:

@@ -917,7 +917,7 @@ class FalangaTagDetector:
         ok = range_m is not None and math.isfinite(range_m) and range_m >= 0
         self._range_m = float(range_m) if ok else None  # type: ignore[arg-type]
 
-    def detect_timed(self, image: object, t: float) -> tuple[list[Observation], dict[str, float]]:
+    def detect_timed(self, image: Image, t: float) -> tuple[list[Observation], dict[str, float]]:
         """As :meth:`detect`, plus the wall time of each stage (ms) keyed by :data:`STAGES` and ``total``:
         ``threshold`` (grey conversion, downscale, adaptive threshold and run labelling), ``contours``
         (component shape scores, contour tracing and polygon fits), ``quad`` (corner refinement), ``inner``
@@ -932,7 +932,7 @@ class FalangaTagDetector:
 
     # ------------------------------------------------------------------------------------ pipeline
 
-    def _run(self, image: object, t: float, times: dict[str, float] | None) -> list[Observation]:
+    def _run(self, image: Image, t: float, times: dict[str, float] | None) -> list[Observation]:
         cfg = self.config
         clock = time.perf_counter
         tic = clock()
@@ -995,7 +995,7 @@ class FalangaTagDetector:
                 break
         return []
 
-    def _run_close(self, image: object, t: float) -> list[Observation]:
+    def _run_close(self, image: Image, t: float) -> list[Observation]:
         """The close-range stage (our extension of Alg. 1, :mod:`alight.perception.falanga_close`): the cross
         alone, for frames where :meth:`_run` found no quad."""
         if self._close is None:

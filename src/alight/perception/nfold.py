@@ -456,7 +456,7 @@ def nfold_response_filter2d(gray: NDArray[np.generic], n: int, k: int) -> tuple[
     return re, im
 
 
-def nfold_detect_filter2d(image: object, n: int, k: int, oriented: bool = False) -> NFoldResult | None:
+def nfold_detect_filter2d(image: Image, n: int, k: int, oriented: bool = False) -> NFoldResult | None:
     """The plain method end to end at one kernel size: :func:`nfold_response_filter2d`, the global
     argmax of ``M`` (sheet 3), orientation, quality and sub-pixel tip. No threshold: the result carries
     its quality. None for an unusable image or one smaller than the kernel."""
@@ -590,7 +590,7 @@ class NFoldDetector:
             )
         ]
 
-    def detect_result(self, image: object) -> NFoldResult | None:
+    def detect_result(self, image: Image) -> NFoldResult | None:
         """The adaptive search (paper 004): the first kernel size whose strongest candidate reaching
         ``min_quality`` exists; None when there is none (or the image is unusable)."""
         gray = as_gray_u8(image)
@@ -609,7 +609,7 @@ class NFoldDetector:
                     return _with_tried(res, tuple(tried))
         return None
 
-    def detect_at(self, image: object, k: int) -> NFoldResult | None:
+    def detect_at(self, image: Image, k: int) -> NFoldResult | None:
         """The method at one kernel size: the candidate of largest full-resolution magnitude, whatever
         its quality (compare :func:`nfold_detect_filter2d`); None for an unusable image."""
         gray = as_gray_u8(image)
@@ -619,7 +619,7 @@ class NFoldDetector:
         peaks = _Search(gray, self.config).peaks(k)
         return peaks[0].finish() if peaks else None
 
-    def candidates(self, image: object, k: int) -> list[NFoldResult]:
+    def candidates(self, image: Image, k: int) -> list[NFoldResult]:
         """Every refined candidate at kernel size ``k``, largest magnitude first."""
         gray = as_gray_u8(image)
         if gray is None or min(gray.shape) < k:

@@ -245,7 +245,7 @@ class QosDetector:
         self._advance(t)
         return obs
 
-    def _run(self, image: object, t: float, s: QosSetting) -> list[Observation]:
+    def _run(self, image: Image, t: float, s: QosSetting) -> list[Observation]:
         gray = as_gray_u8(image)
         if gray is None:
             return []

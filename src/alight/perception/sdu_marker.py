@@ -205,7 +205,7 @@ class SduMarkerDetector:
             )
         ]
 
-    def detect_detailed(self, image: object, t: float) -> SduDetection | None:
+    def detect_detailed(self, image: Image, t: float) -> SduDetection | None:
         """Every source and the fusion (:class:`SduDetection`); None when nothing is found (or the image
         is unusable: :mod:`alight.perception.image_input`)."""
         t = check_time(t)

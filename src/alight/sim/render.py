@@ -452,7 +452,7 @@ def _freeze(value: object) -> object:
     return value
 
 
-def _camera_key(camera: object) -> object | None:
+def _camera_key(camera: CameraModel) -> object | None:
     """The camera's type and constructor parameters when it is one of :mod:`alight.cameras`' models (frozen
     dataclasses): two such cameras with equal parameters have equal rays, so every mission's new
     ``PinholeCamera.default_downward()`` shares one entry. None for anything else (a camera model
