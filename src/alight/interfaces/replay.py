@@ -28,17 +28,20 @@ import alight
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.errors import EstimationError, ReplayError
 from alight.interfaces.replay_readers import (
+    FloatArray,
     ImageSample,
     ImuSample,
     OdometrySample,
     RangeSample,
     Recording,
     ReplayMapping,
+    Sample,
     Stream,
     TruthSample,
     load_mapping,
     open_recording,
 )
+from alight.mission.pipeline import Pipeline
 from alight.mission.presets import build_preset
 from alight.scenario import Scenario, load_scenario, scenario_from_dict
 from alight.types import Observation
@@ -95,46 +98,69 @@ def replay_recording(
 
 
 def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
-    from alight.evaluation.log import MissionLog
-
     seeds = np.random.SeedSequence(sc.seed).spawn(8)
     preset = build_preset(sc, DEFAULT_AIRFRAME, np.random.default_rng(seeds[7]))
-    pipeline = preset.pipeline
-    log = MissionLog()
-    frames: list[tuple[float, list[Observation]]] = []
-    truth_ego: TruthSample | None = None
-    truth_platform: TruthSample | None = None
-    last_odo: OdometrySample | None = None
-    platform_err: list[float] = []
-    ego_err: list[float] = []
-    skipped_frames = 0
-    tick: int | None = None
-    t_first: float | None = None
-    t_last = -math.inf
+    state = _ReplayState(preset.pipeline)
+    _drive(rec, state)
+    _check_replayed(rec, state)
+    arrays = state.log.finalize()
+    result = _result(rec, sc, state, arrays, wall0)
+    return ReplayRun(result=result, log=arrays, frames=state.frames)
 
-    def run_ticks(until: float) -> None:
-        nonlocal tick
-        if not pipeline.ego_initialized:
+
+class _ReplayState:
+    """The Pipeline fed by the recording, its clock on the recording's time, and what the replay keeps:
+    the mission log, the frames and their observations, the latest odometry and truth, the estimate
+    errors against the reference (the truth when the log has it, else its odometry)."""
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        from alight.evaluation.log import MissionLog
+
+        self.pipeline = pipeline
+        self.log = MissionLog()
+        self.frames: list[tuple[float, list[Observation]]] = []
+        self.truth_ego: TruthSample | None = None
+        self.truth_platform: TruthSample | None = None
+        self.last_odo: OdometrySample | None = None
+        self.platform_err: list[float] = []
+        self.ego_err: list[float] = []
+        self.skipped_frames = 0
+        self.tick: int | None = None
+        self.t_first: float | None = None
+        self.t_last = -math.inf
+
+    def run_ticks(self, until: float) -> None:
+        """Run the Pipeline's ``command`` at the control rate up to ``until``, logging every
+        :data:`LOG_EVERY` ticks."""
+        if not self.pipeline.ego_initialized:
             return
-        if tick is None or until - tick * CONTROL_DT > MAX_GAP_S:
+        if self.tick is None or until - self.tick * CONTROL_DT > MAX_GAP_S:
             # start, or a gap in the recording: the Pipeline's clock jumps over it instead of ticking
             # through (a damaged stamp far ahead must not cost hours of ticks)
-            tick = math.floor(until / CONTROL_DT + 1e-9)
-        while (tick + 1) * CONTROL_DT <= until + 1e-9:
-            tick += 1
-            t = tick * CONTROL_DT
-            pipeline.command(t)
-            if tick % LOG_EVERY == 0:
-                _log_row(t)
+            self.tick = math.floor(until / CONTROL_DT + 1e-9)
+        while (self.tick + 1) * CONTROL_DT <= until + 1e-9:
+            self.tick += 1
+            t = self.tick * CONTROL_DT
+            self.pipeline.command(t)
+            if self.tick % LOG_EVERY == 0:
+                self.log_row(t)
 
-    def _log_row(t: float) -> None:
+    def _reference(self) -> tuple[FloatArray | None, FloatArray | None, FloatArray | None]:
+        """(p, q, v) the ego estimate is compared with: the truth when the log has it, else the
+        latest odometry; Nones before either."""
+        if self.truth_ego is not None:
+            return self.truth_ego.p_W, self.truth_ego.q_W, self.truth_ego.v_W
+        if self.last_odo is not None:
+            return self.last_odo.p_WB, self.last_odo.q_WB, self.last_odo.v_WB
+        return None, None, None
+
+    def log_row(self, t: float) -> None:
+        pipeline = self.pipeline
         ego = pipeline.ego()
         target = pipeline.target(t)
-        ref = truth_ego if truth_ego is not None else last_odo
-        p_ref = None if ref is None else (ref.p_W if isinstance(ref, TruthSample) else ref.p_WB)
-        q_ref = None if ref is None else (ref.q_W if isinstance(ref, TruthSample) else ref.q_WB)
-        v_ref = None if ref is None else (ref.v_W if isinstance(ref, TruthSample) else ref.v_WB)
-        log.append(
+        p_ref, q_ref, v_ref = self._reference()
+        platform = self.truth_platform
+        self.log.append(
             t,
             mode=pipeline.status.mode.value,
             p_WB=p_ref,
@@ -143,22 +169,22 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
             p_WB_est=ego.p_WB,
             v_WB_est=ego.v_WB,
             q_WB_est=ego.q_WB,
-            p_WP=None if truth_platform is None else truth_platform.p_W,
-            v_WP=None if truth_platform is None else truth_platform.v_W,
+            p_WP=None if platform is None else platform.p_W,
+            v_WP=None if platform is None else platform.v_W,
             p_WP_est=None if target is None else target.p_WP,
             v_WP_est=None if target is None else target.v_WP,
             range_m=pipeline.range_m,
         )
         if p_ref is not None:
-            ego_err.append(float(np.linalg.norm(ego.p_WB - p_ref)))
-        if target is not None and truth_platform is not None:
-            platform_err.append(float(np.linalg.norm(target.p_WP - truth_platform.p_W)))
+            self.ego_err.append(float(np.linalg.norm(ego.p_WB - p_ref)))
+        if target is not None and platform is not None:
+            self.platform_err.append(float(np.linalg.norm(target.p_WP - platform.p_W)))
 
-    def _feed(s: object) -> int:
-        """Hand one sample to the Pipeline; 1 when it is a frame that could not be used, else 0."""
-        nonlocal last_odo, truth_ego, truth_platform
+    def feed(self, s: Sample) -> None:
+        """Hand one sample to the Pipeline (a frame it cannot use yet is counted as skipped)."""
+        pipeline = self.pipeline
         if isinstance(s, OdometrySample):
-            last_odo = s
+            self.last_odo = s
             pipeline.on_odometry(s.t, s.p_WB, s.q_WB, s.v_WB, s.reset_counter)
         elif isinstance(s, ImuSample):
             pipeline.on_imu(s.t, s.f_B, s.w_B)
@@ -166,46 +192,65 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
             if pipeline.ego_initialized:  # as the runner: ranges once the ego state is known
                 pipeline.on_range(s.t, s.range_m)
         elif isinstance(s, ImageSample):
-            if pipeline.detector is None or not pipeline.ego_initialized:
-                return 1
-            observations, measurements = pipeline.on_image(s.t_capture, s.image)
-            frames.append((s.t_capture, observations))
-            for meas in measurements:
-                log.add_detection(meas.t, meas.p_WP)
-        elif isinstance(s, TruthSample):
-            if s.stream is Stream.TRUTH_EGO:
-                truth_ego = s
-            else:
-                truth_platform = s
-        return 0
+            self._feed_image(s)
+        elif s.stream is Stream.TRUTH_EGO:
+            self.truth_ego = s
+        else:
+            self.truth_platform = s
 
+    def _feed_image(self, s: ImageSample) -> None:
+        pipeline = self.pipeline
+        if pipeline.detector is None or not pipeline.ego_initialized:
+            self.skipped_frames += 1
+            return
+        observations, measurements = pipeline.on_image(s.t_capture, s.image)
+        self.frames.append((s.t_capture, observations))
+        for meas in measurements:
+            self.log.add_detection(meas.t, meas.p_WP)
+
+
+def _drive(rec: Recording, state: _ReplayState) -> None:
+    """Every sample of the recording, in time order, into the Pipeline, its clock ticking between them.
+
+    Raises:
+        ReplayError: a block refuses a (damaged) value.
+    """
     t_now = -math.inf
     try:
         for s in rec.samples():
             t_now = s.t
-            t_first = s.t if t_first is None else t_first
-            t_last = max(t_last, s.t)
-            run_ticks(s.t)
-            skipped_frames += _feed(s)
-        if t_first is not None:
-            run_ticks(t_last)
+            state.t_first = s.t if state.t_first is None else state.t_first
+            state.t_last = max(state.t_last, s.t)
+            state.run_ticks(s.t)
+            state.feed(s)
+        if state.t_first is not None:
+            state.run_ticks(state.t_last)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError, EstimationError) as err:
         # the values of a damaged log can still reach a block that refuses them: one line, not a trace
         raise ReplayError(
             f"{rec.path}: the Pipeline cannot use the message at t={t_now:.3f} s ({err})"
         ) from None
 
-    if t_first is None:
+
+def _check_replayed(rec: Recording, state: _ReplayState) -> None:
+    """Refuse, in one line, a recording that gave nothing to replay or never started the ego state."""
+    if state.t_first is None:
         raise ReplayError(f"{rec.path}: no messages on the mapped topics")
-    if not pipeline.ego_initialized:
+    if not state.pipeline.ego_initialized:
         raise ReplayError(
             f"{rec.path}: the ego state never started: no message on the odometry topic "
             f"({rec.topics.get(Stream.ODOMETRY.value, 'none mapped')})"
         )
-    arrays = log.finalize()
-    stats = pipeline.stats
-    n_obs = sum(len(o) for _, o in frames)
-    result: dict[str, Any] = {
+
+
+def _result(
+    rec: Recording, sc: Scenario, state: _ReplayState, arrays: dict[str, np.ndarray], wall0: float
+) -> dict[str, Any]:
+    """``result.json``'s content: what was replayed and how the estimates did."""
+    assert state.t_first is not None  # _check_replayed
+    stats = state.pipeline.stats
+    frames = state.frames
+    return {
         "source": str(rec.path),
         "format": rec.format,
         "preset": sc.preset,
@@ -213,24 +258,24 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         "outcome": "replayed",
         "topics": dict(rec.topics),
         "messages": dict(sorted(rec.counts.items())),
-        "t_start_s": t_first,
-        "t_end_s": t_last,
-        "duration_s": t_last - t_first,
+        "t_start_s": state.t_first,
+        "t_end_s": state.t_last,
+        "duration_s": state.t_last - state.t_first,
         "frames": len(frames),
-        "frames_skipped": skipped_frames,
+        "frames_skipped": state.skipped_frames,
         "bad_frames": rec.bad_frames,
         "dropped_messages": rec.dropped,
         "warnings": list(rec.warnings),
         "frames_with_observations": sum(1 for _, o in frames if o),
-        "observations": n_obs,
+        "observations": sum(len(o) for _, o in frames),
         "detections": stats.measurements,
         "rejected_measurements": stats.rejected_measurements,
         "time_first_detection_s": stats.t_first_detection,
         "ego_reference": "ground truth"
         if Stream.TRUTH_EGO.value in rec.topics
         else "odometry (the log has no ground truth)",
-        "ego_estimate_rmse_m": _rmse(ego_err),
-        "platform_estimate_rmse_m": _rmse(platform_err),
+        "ego_estimate_rmse_m": _rmse(state.ego_err),
+        "platform_estimate_rmse_m": _rmse(state.platform_err),
         "platform_ground_truth": Stream.TRUTH_PLATFORM.value in rec.topics,
         "ego_extent_m": _extent(arrays["p_WB"]),
         "ego_estimate_extent_m": _extent(arrays["p_WB_est"]),
@@ -238,7 +283,6 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
         "wall_time_s": time.perf_counter() - wall0,
         "alight_version": alight.__version__,
     }
-    return ReplayRun(result=result, log=arrays, frames=frames)
 
 
 def _rmse(err: list[float]) -> float | None:

@@ -469,96 +469,136 @@ def _nlerp(tq: FloatArray, q: FloatArray, t: FloatArray) -> FloatArray:
     return out
 
 
+@dataclass
+class _UlogStreams:
+    """What the ULog's topics give, stream by stream, as they are read."""
+
+    t0: int
+    """the log's first timestamp (us since boot)"""
+    topics: dict[str, str] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+    samples: list[Sample] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def add(self, stream: Stream, topic: str, samples: list[Sample]) -> None:
+        self.topics[stream.value] = topic
+        self.counts[stream.value] = len(samples)
+        self.samples += samples
+
+
 def _ulog_recording(path: Path, ulog: Any, m: UlogMapping) -> Recording:
-    t0 = int(ulog.start_timestamp)
-    mid = m.multi_id
-    topics: dict[str, str] = {}
-    counts: dict[str, int] = {}
-    fast: list[Sample] = []
-    warnings: list[str] = []
-
-    data_p = _ulog_topic(ulog, m.position, mid)
+    out = _UlogStreams(int(ulog.start_timestamp))
+    data_p = _ulog_topic(ulog, m.position, m.multi_id)
     if data_p is not None:
-        # PX4 flags what its estimator did not know (no GPS: no horizontal position); the values are
-        # replayed as logged, and the report says so
-        for flag, what in (("xy_valid", "x, y"), ("z_valid", "z"), ("v_xy_valid", "vx, vy")):
-            if flag in data_p:
-                bad = int(np.count_nonzero(np.asarray(data_p[flag]) == 0))
-                if bad:
-                    n = len(data_p[flag])
-                    warnings.append(
-                        f"{m.position}: {flag} is false in {bad} of {n} samples ({what} as logged)"
-                    )
-    pose = _ulog_pose(data_p, _ulog_topic(ulog, m.attitude, mid), m.position, m.attitude, t0)
-    if pose is not None:
-        t, p, q, v = pose
-        # the counters at the kept samples' times (the pose keeps a subset of the topic's, in order)
-        counters = None if data_p is None else _ulog_reset_counters(data_p)
-        if counters is not None and data_p is not None:
-            idx = np.searchsorted(_times(data_p, t0), t)
-            counters = counters[np.minimum(idx, counters.size - 1)]
-        topics[Stream.ODOMETRY.value] = f"{m.position} + {m.attitude}"
-        fast += [
-            OdometrySample(
-                float(t[i]),
-                p[i],
-                q[i],
-                None if v is None or not np.isfinite(v[i]).all() else v[i],
-                None if counters is None else int(counters[i]),
-            )
-            for i in range(t.shape[0])
-        ]
-        counts[Stream.ODOMETRY.value] = int(t.shape[0])
-
-    imu = _ulog_topic(ulog, m.imu, mid)
-    if imu is not None:
-        t = _times(imu, t0)
-        w = frd_to_flu(_fields(imu, ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"), m.imu))
-        f = frd_to_flu(
-            _fields(imu, ("accelerometer_m_s2[0]", "accelerometer_m_s2[1]", "accelerometer_m_s2[2]"), m.imu)
-        )
-        ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)
-        idx = np.flatnonzero(ok)
-        fast += [ImuSample(float(t[i]), f[i], w[i]) for i in idx]
-        topics[Stream.IMU.value] = m.imu
-        counts[Stream.IMU.value] = int(idx.size)
-
-    rng = _ulog_topic(ulog, m.range, mid)
-    if rng is not None:
-        t = _times(rng, t0)
-        d: FloatArray = _fields(rng, ("current_distance",), m.range)[:, 0]
-        fast += [
-            RangeSample(float(t[i]), float(d[i]) if math.isfinite(d[i]) and d[i] >= 0 else None)
-            for i in range(t.shape[0])
-        ]
-        topics[Stream.RANGE.value] = m.range
-        counts[Stream.RANGE.value] = int(t.shape[0])
-
-    truth = _ulog_pose(
-        _ulog_topic(ulog, m.truth_position, mid),
-        _ulog_topic(ulog, m.truth_attitude, mid),
-        m.truth_position,
-        m.truth_attitude,
-        t0,
-    )
-    if truth is not None:
-        t, p, q, v = truth
-        fast += [
-            TruthSample(float(t[i]), Stream.TRUTH_EGO, p[i], q[i], None if v is None else v[i])
-            for i in range(t.shape[0])
-        ]
-        topics[Stream.TRUTH_EGO.value] = m.truth_position
-        counts[Stream.TRUTH_EGO.value] = int(t.shape[0])
-
-    if Stream.ODOMETRY.value not in topics:
+        out.warnings += _ulog_validity_warnings(data_p, m.position)
+    _add_ulog_odometry(out, data_p, _ulog_topic(ulog, m.attitude, m.multi_id), m)
+    _add_ulog_imu(out, _ulog_topic(ulog, m.imu, m.multi_id), m.imu)
+    _add_ulog_range(out, _ulog_topic(ulog, m.range, m.multi_id), m.range)
+    _add_ulog_truth(out, ulog, m)
+    if Stream.ODOMETRY.value not in out.topics:
         raise ReplayError(
             f"{path}: no ego state: the ULog has no usable {m.position!r} with {m.attitude!r} "
             "(set ulog.position / ulog.attitude in a --mapping file)"
         )
-    fast, dropped = _clean(fast)
+    fast, dropped = _clean(out.samples)
     return Recording(
-        path=path, format="ulog", topics=topics, counts=counts, warnings=warnings, dropped=dropped, _fast=fast
+        path=path,
+        format="ulog",
+        topics=out.topics,
+        counts=out.counts,
+        warnings=out.warnings,
+        dropped=dropped,
+        _fast=fast,
     )
+
+
+def _ulog_validity_warnings(data_p: Mapping[str, np.ndarray], topic: str) -> list[str]:
+    """PX4 flags what its estimator did not know (no GPS: no horizontal position); the values are
+    replayed as logged, and the report says so."""
+    warnings = []
+    for flag, what in (("xy_valid", "x, y"), ("z_valid", "z"), ("v_xy_valid", "vx, vy")):
+        if flag in data_p:
+            bad = int(np.count_nonzero(np.asarray(data_p[flag]) == 0))
+            if bad:
+                n = len(data_p[flag])
+                warnings.append(f"{topic}: {flag} is false in {bad} of {n} samples ({what} as logged)")
+    return warnings
+
+
+def _add_ulog_odometry(
+    out: _UlogStreams,
+    data_p: Mapping[str, np.ndarray] | None,
+    data_q: Mapping[str, np.ndarray] | None,
+    m: UlogMapping,
+) -> None:
+    """The odometry stream: the position topic with the attitude interpolated onto its times, and
+    PX4's reset counters."""
+    pose = _ulog_pose(data_p, data_q, m.position, m.attitude, out.t0)
+    if pose is None or data_p is None:
+        return
+    t, p, q, v = pose
+    # the counters at the kept samples' times (the pose keeps a subset of the topic's, in order)
+    counters = _ulog_reset_counters(data_p)
+    if counters is not None:
+        idx = np.searchsorted(_times(data_p, out.t0), t)
+        counters = counters[np.minimum(idx, counters.size - 1)]
+    samples: list[Sample] = [
+        OdometrySample(
+            float(t[i]),
+            p[i],
+            q[i],
+            None if v is None or not np.isfinite(v[i]).all() else v[i],
+            None if counters is None else int(counters[i]),
+        )
+        for i in range(t.shape[0])
+    ]
+    out.add(Stream.ODOMETRY, f"{m.position} + {m.attitude}", samples)
+
+
+def _add_ulog_imu(out: _UlogStreams, imu: Mapping[str, np.ndarray] | None, topic: str) -> None:
+    """The IMU stream: ``sensor_combined``'s gyro and accelerometer, FRD turned to FLU; samples with a
+    non-finite value left out."""
+    if imu is None:
+        return
+    t = _times(imu, out.t0)
+    w = frd_to_flu(_fields(imu, ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"), topic))
+    f = frd_to_flu(
+        _fields(imu, ("accelerometer_m_s2[0]", "accelerometer_m_s2[1]", "accelerometer_m_s2[2]"), topic)
+    )
+    ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)
+    out.add(Stream.IMU, topic, [ImuSample(float(t[i]), f[i], w[i]) for i in np.flatnonzero(ok)])
+
+
+def _add_ulog_range(out: _UlogStreams, rng: Mapping[str, np.ndarray] | None, topic: str) -> None:
+    """The range stream: ``current_distance``, None where it is not a finite, non-negative distance."""
+    if rng is None:
+        return
+    t = _times(rng, out.t0)
+    d: FloatArray = _fields(rng, ("current_distance",), topic)[:, 0]
+    samples: list[Sample] = [
+        RangeSample(float(t[i]), float(d[i]) if math.isfinite(d[i]) and d[i] >= 0 else None)
+        for i in range(t.shape[0])
+    ]
+    out.add(Stream.RANGE, topic, samples)
+
+
+def _add_ulog_truth(out: _UlogStreams, ulog: Any, m: UlogMapping) -> None:
+    """The vehicle's ground truth, when the log has it (PX4's simulators log it)."""
+    truth = _ulog_pose(
+        _ulog_topic(ulog, m.truth_position, m.multi_id),
+        _ulog_topic(ulog, m.truth_attitude, m.multi_id),
+        m.truth_position,
+        m.truth_attitude,
+        out.t0,
+    )
+    if truth is None:
+        return
+    t, p, q, v = truth
+    samples: list[Sample] = [
+        TruthSample(float(t[i]), Stream.TRUTH_EGO, p[i], q[i], None if v is None else v[i])
+        for i in range(t.shape[0])
+    ]
+    out.add(Stream.TRUTH_EGO, m.truth_position, samples)
 
 
 # --------------------------------------------------------------------------------------------------
