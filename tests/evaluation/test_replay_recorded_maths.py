@@ -128,3 +128,26 @@ def test_frames_with_detections_come_first() -> None:
     shown = frames_to_show(with_det, without, n=5)
     assert len(shown) == 5 and sum(f.t >= 10 for f in shown) == 3
     assert [f.t for f in shown] == sorted(f.t for f in shown)
+
+
+def test_a_long_series_is_drawn_as_an_envelope_that_keeps_its_spikes() -> None:
+    """Beyond MAX_POINTS samples (a 20 min ULog's IMU) a series is drawn per bin: its min-max band keeps
+    a one-sample spike that decimation would drop, and the mean line has one point per bin."""
+    from alight.evaluation.plots import new_figure
+    from alight.evaluation.recorded_plots import MAX_POINTS, _series
+
+    n = 5 * MAX_POINTS + 7
+    t = np.arange(n) * 0.005
+    y = np.sin(t)
+    y[73_457] = 40.0  # one spike, off any regular stride
+    ax = new_figure(4, 3).add_subplot()
+    _series(ax, t, y, color="tab:red", lw=0.8)
+    (line,) = ax.get_lines()
+    assert len(line.get_xdata()) == MAX_POINTS // 2
+    band = ax.collections[0].get_paths()[0].vertices
+    assert band[:, 1].max() == pytest.approx(40.0)
+    assert band[:, 1].min() == pytest.approx(-1.0, abs=1e-6)
+    # a short series is drawn as it is
+    ax2 = new_figure(4, 3).add_subplot()
+    _series(ax2, t[:100], y[:100], color="k")
+    assert np.array_equal(ax2.get_lines()[0].get_ydata(), y[:100]) and not ax2.collections
