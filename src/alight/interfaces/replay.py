@@ -16,17 +16,29 @@ detector found) and ``report.html``.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 import alight
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.errors import EstimationError, ReplayError
+from alight.evaluation.recorded_flight import (
+    FRAME_WIDTH_PX,
+    FRAMES_SHOWN,
+    CameraFrame,
+    FrameSampler,
+    PoseTrack,
+    RecordedFlight,
+    estimate_differences,
+    frames_to_show,
+)
 from alight.interfaces.replay_readers import (
     FloatArray,
     ImageSample,
@@ -62,6 +74,8 @@ class ReplayRun:
 
     result: dict[str, Any]
     log: dict[str, np.ndarray]
+    recorded: RecordedFlight
+    """the log's own streams, messages and a few camera frames, for the recorded flight's report"""
     frames: list[tuple[float, list[Observation]]] = field(default_factory=list)
     """(capture time, observations) of every camera frame the detector saw, in order"""
 
@@ -104,8 +118,81 @@ def _run(rec: Recording, sc: Scenario, wall0: float) -> ReplayRun:
     _drive(rec, state)
     _check_replayed(rec, state)
     arrays = state.log.finalize()
-    result = _result(rec, sc, state, arrays, wall0)
-    return ReplayRun(result=result, log=arrays, frames=state.frames)
+    recorded = state.kept.recorded_flight(rec)
+    result = _result(rec, sc, state, arrays, recorded, wall0)
+    return ReplayRun(result=result, log=arrays, recorded=recorded, frames=state.frames)
+
+
+class _StreamKeeper:
+    """The recording's streams as the replay reads them, at their own rates, and a few camera frames
+    (downscaled, with their observations) spread over the flight, for the report."""
+
+    def __init__(self) -> None:
+        self.odometry: list[OdometrySample] = []
+        self.truth: list[TruthSample] = []
+        self.imu: list[ImuSample] = []
+        self.ranges: list[RangeSample] = []
+        self.with_detections = FrameSampler(FRAMES_SHOWN)
+        self.without = FrameSampler(FRAMES_SHOWN)
+
+    def keep(self, s: Sample) -> None:
+        if isinstance(s, OdometrySample):
+            self.odometry.append(s)
+        elif isinstance(s, ImuSample):
+            self.imu.append(s)
+        elif isinstance(s, RangeSample):
+            self.ranges.append(s)
+        elif isinstance(s, TruthSample) and s.stream is Stream.TRUTH_EGO:
+            self.truth.append(s)
+
+    def keep_frame(self, t: float, image: np.ndarray, observations: list[Observation]) -> None:
+        sampler = self.with_detections if observations else self.without
+        sampler.offer(lambda: _thumbnail(t, image, observations))
+
+    def recorded_flight(self, rec: Recording) -> RecordedFlight:
+        odo = rec.topics.get(Stream.ODOMETRY.value, "")
+        estimate = f"PX4's estimate ({odo})" if rec.format == "ulog" else f"the log's odometry ({odo})"
+        truth = _pose_track([(s.t, s.p_W, s.q_W, s.v_W) for s in self.truth]) if self.truth else None
+        return RecordedFlight(
+            estimate_label=estimate,
+            odometry=_pose_track([(s.t, s.p_WB, s.q_WB, s.v_WB) for s in self.odometry]),
+            truth=truth,
+            truth_label=f"ground truth ({rec.topics.get(Stream.TRUTH_EGO.value, '')})",
+            imu_t=np.array([s.t for s in self.imu], dtype=np.float64),
+            f_B=np.array([s.f_B for s in self.imu], dtype=np.float64).reshape(-1, 3),
+            w_B=np.array([s.w_B for s in self.imu], dtype=np.float64).reshape(-1, 3),
+            range_t=np.array([s.t for s in self.ranges], dtype=np.float64),
+            range_m=np.array([math.nan if s.range_m is None else s.range_m for s in self.ranges]),
+            messages=list(rec.messages),
+            warnings=list(rec.warnings),
+            vehicle=rec.vehicle,
+            frames=frames_to_show(self.with_detections, self.without),
+        )
+
+
+def _pose_track(rows: list[tuple[float, FloatArray, FloatArray | None, FloatArray | None]]) -> PoseTrack:
+    """A :class:`PoseTrack` of (t, p, q, v) rows, NaN where q or v is missing."""
+    if not rows:
+        return PoseTrack.empty()
+    nan3, nan4 = np.full(3, np.nan), np.full(4, np.nan)
+    return PoseTrack(
+        np.array([r[0] for r in rows], dtype=np.float64),
+        np.array([r[1] for r in rows], dtype=np.float64),
+        np.array([nan4 if r[2] is None else r[2] for r in rows], dtype=np.float64),
+        np.array([nan3 if r[3] is None else r[3] for r in rows], dtype=np.float64),
+    )
+
+
+def _thumbnail(t: float, image: np.ndarray, observations: list[Observation]) -> CameraFrame:
+    """The frame at most :data:`FRAME_WIDTH_PX` wide, its observations' pixels scaled with it."""
+    width = image.shape[1]
+    if width <= FRAME_WIDTH_PX:
+        return CameraFrame(t, image.copy(), list(observations))
+    s = FRAME_WIDTH_PX / width
+    size = (FRAME_WIDTH_PX, max(round(image.shape[0] * s), 1))
+    small = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    scaled = [dataclasses.replace(o, pixels=o.pixels * s) for o in observations]
+    return CameraFrame(t, np.ascontiguousarray(small, dtype=np.uint8), scaled)
 
 
 class _ReplayState:
@@ -128,6 +215,7 @@ class _ReplayState:
         self.tick: int | None = None
         self.t_first: float | None = None
         self.t_last = -math.inf
+        self.kept = _StreamKeeper()
 
     def run_ticks(self, until: float) -> None:
         """Run the Pipeline's ``command`` at the control rate up to ``until``, logging every
@@ -183,6 +271,7 @@ class _ReplayState:
     def feed(self, s: Sample) -> None:
         """Hand one sample to the Pipeline (a frame it cannot use yet is counted as skipped)."""
         pipeline = self.pipeline
+        self.kept.keep(s)
         if isinstance(s, OdometrySample):
             self.last_odo = s
             pipeline.on_odometry(s.t, s.p_WB, s.q_WB, s.v_WB, s.reset_counter)
@@ -205,6 +294,7 @@ class _ReplayState:
             return
         observations, measurements = pipeline.on_image(s.t_capture, s.image)
         self.frames.append((s.t_capture, observations))
+        self.kept.keep_frame(s.t_capture, s.image, observations)
         for meas in measurements:
             self.log.add_detection(meas.t, meas.p_WP)
 
@@ -244,12 +334,20 @@ def _check_replayed(rec: Recording, state: _ReplayState) -> None:
 
 
 def _result(
-    rec: Recording, sc: Scenario, state: _ReplayState, arrays: dict[str, np.ndarray], wall0: float
+    rec: Recording,
+    sc: Scenario,
+    state: _ReplayState,
+    arrays: dict[str, np.ndarray],
+    recorded: RecordedFlight,
+    wall0: float,
 ) -> dict[str, Any]:
-    """``result.json``'s content: what was replayed and how the estimates did."""
+    """``result.json``'s content: what was replayed and how the estimates did (``ego_vs_log_estimate``:
+    alight's ego estimate against the log's own; ``ego_vs_truth`` against the log's ground truth)."""
     assert state.t_first is not None  # _check_replayed
     stats = state.pipeline.stats
     frames = state.frames
+    differences = dict(estimate_differences(recorded, arrays))
+    vs_truth = differences.get("ground truth")
     return {
         "source": str(rec.path),
         "format": rec.format,
@@ -279,6 +377,10 @@ def _result(
         "platform_ground_truth": Stream.TRUTH_PLATFORM.value in rec.topics,
         "ego_extent_m": _extent(arrays["p_WB"]),
         "ego_estimate_extent_m": _extent(arrays["p_WB_est"]),
+        "ego_vs_log_estimate": differences["the log's estimate"].summary(),
+        "ego_vs_truth": None if vs_truth is None else vs_truth.summary(),
+        "vehicle": recorded.vehicle or None,
+        "log_messages": len(recorded.messages),
         "block_time_s": {k: round(v, 6) for k, v in stats.block_time_s.items()},
         "wall_time_s": time.perf_counter() - wall0,
         "alight_version": alight.__version__,
@@ -311,7 +413,7 @@ def replay_to_dir(
     into ``out_dir`` (created if needed)."""
     from alight.evaluation.log import save_arrays
     from alight.evaluation.mission_io import write_result
-    from alight.evaluation.report import write_mission_report
+    from alight.evaluation.recorded_report import write_recorded_report
 
     out = Path(out_dir)
     try:
@@ -322,8 +424,7 @@ def replay_to_dir(
     save_arrays(run.log, out)
     _write_frames(out / FRAMES_CSV, run.frames)
     if report:
-        events = {"t_first_detection": run.result["time_first_detection_s"]}
-        write_mission_report(out, run.result, run.log, events)
+        write_recorded_report(out, run.result, run.log, run.recorded)
     write_result(out, run.result)
     return run
 

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from alight.errors import ReplayError
+from alight.evaluation.recorded_flight import LogMessage
 from alight.interfaces.frames import frd_to_flu, mavlink_to_q_WB_many, ned_to_enu
 
 FloatArray = NDArray[np.float64]
@@ -177,6 +178,8 @@ class RosMapping(_Strict):
     image: list[str] = Field(default_factory=list)
     truth_ego: list[str] = Field(default_factory=list)
     truth_platform: list[str] = Field(default_factory=list)
+    log: list[str] = Field(default_factory=list)
+    """the nodes' text messages (``/rosout``): every one of these topics the bag has"""
     image_latency_s: float = Field(default=0.0, ge=0.0, le=10.0)
 
 
@@ -246,6 +249,10 @@ class Recording:
     """what the reader noticed but could read past (a damaged ULog's lost data)"""
     dropped: int = 0
     """messages dropped as damaged (non-finite, beyond physical limits, or stamped far from the rest)"""
+    messages: list[LogMessage] = field(default_factory=list)
+    """the log's own text messages (PX4's logged messages), on the replay's clock"""
+    vehicle: str = ""
+    """the autopilot and board the log names (PX4: ``sys_name`` and ``ver_hw``), when it does"""
     _fast: list[Sample] = field(default_factory=list, repr=False)
     _reader: Any = field(default=None, repr=False)
     _image_conns: list[Any] = field(default_factory=list, repr=False)
@@ -368,7 +375,33 @@ def _open_ulog(path: Path, m: UlogMapping) -> Recording:
             "copy or a recording stopped short); replayed what precedes it"
         )
     rec.warnings += sorted({line.strip() for line in chatter.getvalue().splitlines() if line.strip()})[:5]
+    rec.messages = _ulog_messages(ulog)
+    rec.vehicle = _ulog_vehicle(ulog)
     return rec
+
+
+def _ulog_messages(ulog: Any) -> list[LogMessage]:
+    """PX4's logged messages (``[commander] Takeoff detected``, preflight failures ...), tagged ones
+    included, in time order on the replay's clock; none when the log's records are damaged."""
+    t0 = int(ulog.start_timestamp)
+    records = list(ulog.logged_messages)
+    for tagged in dict(ulog.logged_messages_tagged).values():
+        records += list(tagged)
+    try:
+        out = [
+            LogMessage((int(m.timestamp) - t0) * 1e-6, str(m.log_level_str()), str(m.message).strip())
+            for m in records
+        ]
+    except Exception:  # noqa: BLE001 - a damaged record: the messages are a courtesy, the replay goes on
+        return []
+    return sorted(out, key=lambda m: m.t)
+
+
+def _ulog_vehicle(ulog: Any) -> str:
+    """``PX4 on <board>`` from the log's info messages, or what of it the log has."""
+    info = dict(ulog.msg_info_dict)
+    name, board = str(info.get("sys_name", "")).strip(), str(info.get("ver_hw", "")).strip()
+    return f"{name} on {board}" if name and board else name or board
 
 
 ULOG_HEADER_BYTES = 16
@@ -738,6 +771,7 @@ def _bag_recording(path: Path, fmt: str, reader: Any, m: RosMapping) -> Recordin
                 fast.append(s)
                 counts[stream.value] = counts.get(stream.value, 0) + 1
     fast, dropped = _clean(fast)
+    messages = _ros_log_messages(reader, [c for t in m.log for c in by_topic.get(t, [])], origin)
     # frames stamped far from the other messages (or, without them, from the bag's middle) are damaged
     if fast:
         t_mid = float(np.median([x.t for x in fast]))
@@ -755,7 +789,35 @@ def _bag_recording(path: Path, fmt: str, reader: Any, m: RosMapping) -> Recordin
         _origin_ns=origin,
         _latency_s=m.image_latency_s,
         _t_mid=t_mid,
+        messages=messages,
     )
+
+
+ROS_LOG_TYPES = ("rcl_interfaces/msg/Log", "rosgraph_msgs/msg/Log")
+ROS_LOG_LEVELS: dict[str, dict[int, str]] = {
+    "rcl_interfaces/msg/Log": {10: "DEBUG", 20: "INFO", 30: "WARN", 40: "ERROR", 50: "FATAL"},
+    "rosgraph_msgs/msg/Log": {1: "DEBUG", 2: "INFO", 4: "WARN", 8: "ERROR", 16: "FATAL"},
+}
+"""The level numbers of ROS 2's and ROS 1's log messages."""
+
+
+def _ros_log_messages(reader: Any, conns: list[Any], origin_ns: int) -> list[LogMessage]:
+    """The text messages of the bag's log topics (``/rosout``), ``[node] text``, in time order on the
+    replay's clock (the message's own stamp, else the bag's)."""
+    conns = [c for c in conns if c.msgtype in ROS_LOG_TYPES]
+    out: list[LogMessage] = []
+    if not conns:
+        return out
+    for conn, t_ns, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        stamp = msg.stamp if conn.msgtype == ROS_LOG_TYPES[0] else msg.header.stamp
+        ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+        t = ((ns if ns else int(t_ns)) - origin_ns) * 1e-9
+        level = ROS_LOG_LEVELS[conn.msgtype].get(int(msg.level), str(int(msg.level)))
+        name = str(msg.name).strip()
+        text = str(msg.msg).strip()
+        out.append(LogMessage(t, level, f"[{name}] {text}" if name else text))
+    return sorted(out, key=lambda m: m.t)
 
 
 def _stamp_s(msg: Any, t_ns: int, origin_ns: int) -> float:
