@@ -79,6 +79,9 @@ def _result_kind(name: str) -> Kind:
     return "flag" if bool in args else "count" if int in args else "number"
 
 
+_SIGNED_COLUMNS = ("touchdown_rel_vertical_speed_mps", "touchdown_platform_turn_rate_rad_s")
+"""The numeric result columns that may be negative (a turn to the right is a negative rate)."""
+
 COLUMNS: tuple[Column, ...] = (
     Column("mission_id", "id", required=True, pattern=_NAME),
     Column("condition_id", "id", required=True, pattern=r"c[0-9]{3,9}"),
@@ -88,7 +91,7 @@ COLUMNS: tuple[Column, ...] = (
     Column("outcome", "outcome", required=True),
     Column("success", "flag", required=True),
     *(
-        Column(c, _result_kind(c), low=-MAX_MAGNITUDE if c == "touchdown_rel_vertical_speed_mps" else 0.0)
+        Column(c, _result_kind(c), low=-MAX_MAGNITUDE if c in _SIGNED_COLUMNS else 0.0)
         for c in RESULT_COLUMNS
         if c not in ("outcome", "success", "mission_dir", "error")
     ),

@@ -76,7 +76,7 @@ from alight.estimation.guards import (
 from alight.estimation.telemetry import (
     TelemetryBias,
     TelemetryFusionConfig,
-    carry_fix,
+    carry_fix_on_turn,
     telemetry_adds_information,
 )
 from alight.numerics.linalg import chol_solve
@@ -918,7 +918,9 @@ class PlatformEkf:
         if abs(t_fuse - t_stamp) > tc.max_carry_s:
             self.n_telemetry_skipped += 1
             return False
-        p_c, c_c = carry_fix(t_stamp, p, v, c, t_fuse, tc.velocity_std_mps)
+        # carried along the estimated turn: its position on the arc and its heading turned with it
+        omega = float(self._x[I_OMEGA]) if self.config.use_turn_rate and self._initialized else 0.0
+        p_c, v, c_c = carry_fix_on_turn(t_stamp, p, v, c, t_fuse, tc.velocity_std_mps, omega)
         z, R = self.telemetry.corrected(p_c, c_c, t_fuse)
         if not self._initialized:
             was = self._initialized

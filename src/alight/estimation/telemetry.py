@@ -20,7 +20,8 @@ platform estimate, which both use the same camera measurements; the platform fil
 letting telemetry make it more certain than the bias is known (:func:`telemetry_adds_information`).
 
 A fix is used by the platform filter corrected, ``p - b``, with covariance ``cov + P_b``, after being
-carried in time on its own velocity to the filter's time (:func:`carry_fix`).
+carried in time on its own velocity, along the filter's turn, to the filter's time
+(:func:`carry_fix_on_turn`).
 """
 
 from __future__ import annotations
@@ -71,10 +72,42 @@ def carry_fix(
 ) -> tuple[FloatArray, FloatArray]:
     """The fix taken at ``t_stamp`` carried to ``t`` (s) on its own velocity: position (3,) (m) and its
     covariance (3, 3) (m^2), grown by ``(velocity_std_mps dt)^2`` per axis."""
-    dt = t - t_stamp
-    p = np.asarray(p_WP, dtype=np.float64) + np.asarray(v_WP, dtype=np.float64) * dt
-    c = np.asarray(cov, dtype=np.float64) + np.eye(3) * (velocity_std_mps * dt) ** 2
+    p, _, c = carry_fix_on_turn(t_stamp, p_WP, v_WP, cov, t, velocity_std_mps, 0.0)
     return p, c
+
+
+def carry_fix_on_turn(
+    t_stamp: float,
+    p_WP: FloatArray,
+    v_WP: FloatArray,
+    cov: FloatArray,
+    t: float,
+    velocity_std_mps: float,
+    turn_rate_rad_s: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The fix taken at ``t_stamp`` carried to ``t`` (s) along a turn at ``turn_rate_rad_s`` (rad/s,
+    counter-clockwise) at its own speed: position (3,) (m), velocity (3,) (m/s, its horizontal part
+    turned by ``omega dt``) and the position's covariance (3, 3) (m^2), grown by ``(velocity_std_mps
+    dt)^2`` per axis. Exact on a circle (the constant-turn-rate model of the unicycle filter), the
+    straight line at ``omega = 0``. Why: a fix is fused up to ``time_guard_s`` before its stamp, and
+    carried straight its heading is ``omega dt`` off: on a 30 m circle at 8.5 m/s, 0.07 rad, 0.6 m/s
+    of velocity across the track, fused as if exact (the heading's variance is ``0.2^2 / v^2``)."""
+    dt = t - t_stamp
+    v = np.asarray(v_WP, dtype=np.float64)
+    phi = float(turn_rate_rad_s) * dt
+    if abs(phi) < 1e-4:
+        s_over, c_over = 1.0 - phi * phi / 6.0, 0.5 * phi
+    else:
+        s_over, c_over = math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
+    vx, vy = float(v[0]), float(v[1])
+    # the chord of the arc: dt (S v + C J v), J the quarter turn counter-clockwise
+    p = np.asarray(p_WP, dtype=np.float64) + dt * np.array(
+        [s_over * vx - c_over * vy, s_over * vy + c_over * vx, float(v[2])]
+    )
+    cp, sp = math.cos(phi), math.sin(phi)
+    v_t = np.array([cp * vx - sp * vy, sp * vx + cp * vy, float(v[2])])
+    c = np.asarray(cov, dtype=np.float64) + np.eye(3) * (velocity_std_mps * dt) ** 2
+    return p, v_t, c
 
 
 def bias_update(b: FloatArray, P: FloatArray, y: FloatArray, R: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -260,6 +260,7 @@ def _cards(result: Mapping[str, Any], log: Mapping[str, np.ndarray]) -> list[tup
         ("Time to land", format_quantity(result.get("time_to_land_s"), "s"), True),
         ("First detection", format_quantity(result.get("time_first_detection_s"), "s"), True),
         ("Touchdown rel. speed", format_quantity(result.get("touchdown_rel_speed_mps"), "m/s"), False),
+        ("At contact", _contact_tile(result), False),
         ("Detections", format_quantity(result.get("detections")), False),
         ("Platform est. RMSE", format_quantity(result.get("platform_estimate_rmse_m"), "m"), False),
         ("Flight energy", format_quantity(result.get("energy_flight_J"), "J"), False),
@@ -269,6 +270,21 @@ def _cards(result: Mapping[str, Any], log: Mapping[str, np.ndarray]) -> list[tup
         ("Sim / wall", speedup, False),
     ]
     return cards
+
+
+def _contact_tile(result: Mapping[str, Any]) -> str:
+    """The first contact against its limits: the speed across the deck and the vertical one relative to
+    it, and the platform's speed and heading rate then ("—" without a contact)."""
+    h = _finite_or_none(result.get("touchdown_rel_horizontal_speed_mps"))
+    v = _finite_or_none(result.get("touchdown_rel_vertical_speed_mps"))
+    if h is None or v is None:
+        return "—"
+    text = f"across {h:.2f} m/s, vertical {v:.2f} m/s"
+    speed = _finite_or_none(result.get("touchdown_platform_speed_mps"))
+    rate = _finite_or_none(result.get("touchdown_platform_turn_rate_rad_s"))
+    if speed is not None and rate is not None:
+        text += f"; platform {speed:.1f} m/s turning {rate:+.2f} rad/s ({abs(speed * rate):.1f} m/s²)"
+    return text
 
 
 def _timeline_html(log: Mapping[str, np.ndarray]) -> str:

@@ -59,6 +59,14 @@ class MissionResult:
     """Simulated time at the end of the mission (s)."""
     wall_time_s: float | None = None
     """Wall time of the flight (s); for an error, the time until the error."""
+    touchdown_rel_horizontal_speed_mps: float | None = None
+    """Horizontal speed relative to the touched surface at first contact (m/s): the contact judge's
+    ``max_horizontal_speed_mps`` (0.75) is its limit."""
+    touchdown_platform_speed_mps: float | None = None
+    """The platform's horizontal speed at first contact (m/s)."""
+    touchdown_platform_turn_rate_rad_s: float | None = None
+    """The platform's heading rate at first contact (rad/s, counter-clockwise positive): with the speed,
+    its centripetal acceleration is their product."""
     error: str | None = None
     """One line saying what went wrong, for ``outcome: error``."""
 

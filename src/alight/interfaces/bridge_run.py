@@ -187,6 +187,8 @@ def _outputs(
         "touchdown_rel_vertical_speed_mps": v.get("touchdown_rel_vertical_speed_mps"),
         "touchdown_rel_horizontal_speed_mps": v.get("touchdown_rel_horizontal_speed_mps"),
         "touchdown_tilt_deg": v.get("touchdown_tilt_deg"),
+        "touchdown_platform_speed_mps": v.get("touchdown_platform_speed_mps"),
+        "touchdown_platform_turn_rate_rad_s": v.get("touchdown_platform_turn_rate_rad_s"),
         "contact_surface": v.get("contact_surface"),
         "contact_reason": v.get("contact_reason"),
         "outcome_reason": v.get("outcome_reason"),

@@ -178,6 +178,23 @@ class MissionConfig:
     A tractor's 4 m U-turn at 3 m/s (2.25 m/s^2) gave 1.0-1.4 m/s, past the contact judge's 0.75, in 4 of
     20 envelope missions at 5886e7b; a steady turn is predicted well, so only hard turns are waited out.
     It waits at most ``land_tilt_wait_s``, then goes around. None: off (the papers' descent)."""
+    land_steady_turn_s: PositiveFloat | None = None
+    """With ``land_commit_max_platform_accel_mps2``: a turn that the platform estimate has held steady
+    this long (s) no longer holds the commit, up to ``land_steady_turn_max_accel_mps2``. A sustained
+    turn (a circle, a motorway bend, a ship holding its turn) is what the constant-turn-rate prediction
+    the committed descent flies on predicts exactly, and waiting for the straight that a circle never
+    drives ended in go-arounds (sustained circles at 1.8-3.2 m/s^2: 0 of 60 landed). Longer than a
+    manoeuvre that ends: a tractor's 4 m U-turn at 3 m/s lasts 4.2 s, and it still waits for the row.
+    "Steady": the estimate's signed turn rate ``(v x a)_z / |v|^2`` stays within
+    ``land_steady_turn_band_rad_s`` of its running mean (EMA over ``land_steady_turn_s / 3``). None: every
+    hard turn holds the commit."""
+    land_steady_turn_band_rad_s: PositiveFloat = 0.08
+    """See ``land_steady_turn_s`` (rad/s): about three times the turn-rate estimate's own jitter on a
+    30 m circle at 8.5 m/s (0.02-0.03 rad/s), a tenth of a tractor's U-turn rate."""
+    land_steady_turn_max_accel_mps2: PositiveFloat = 3.5
+    """A steady turn harder than this (m/s^2) holds the commit however long it lasts: the vehicle leans
+    into the centripetal acceleration too (atan(3.5 / 9.81) = 20 deg before any rotor drag), and the
+    touchdown tilt limit is 25 deg."""
     land_tilt_wait_s: PositiveFloat = 20.0
     """Longest wait at the commit height for a lull in the tilt or the end of a hard turn before a
     go-around (s)."""
@@ -279,6 +296,46 @@ def position_std_m(target: PlatformEstimate) -> float:
     return math.sqrt(max(0.5 * (float(c[0, 0]) + float(c[1, 1])), 0.0))
 
 
+def signed_turn_rate(target: PlatformEstimate) -> float:
+    """The platform estimate's turn rate (rad/s, counter-clockwise), ``(v x a)_z / |v|^2``; 0 below
+    0.5 m/s (the heading of a vehicle at rest says nothing) or when not finite."""
+    vx, vy = float(target.v_WP[0]), float(target.v_WP[1])
+    ax, ay = float(target.a_WP[0]), float(target.a_WP[1])
+    speed2 = vx * vx + vy * vy
+    w = (vx * ay - vy * ax) / speed2 if speed2 >= 0.25 else 0.0
+    return w if math.isfinite(w) else 0.0
+
+
+class SteadyTurn:
+    """How long the platform estimate's turn rate has stayed within a band of its running mean (the
+    commit rule of a sustained turn, ``MissionConfig.land_steady_turn_s``). The mean is an EMA over a
+    third of the required duration; the run restarts when the rate leaves the band, when the mean
+    changes sign (a figure-8's crossing), or after a gap of more than 0.5 s without an estimate."""
+
+    def __init__(self) -> None:
+        self.mean_rad_s = 0.0
+        self._t: float | None = None
+        self._since: float | None = None
+
+    def update(self, t: float, target: PlatformEstimate | None, duration_s: float, band_rad_s: float) -> None:
+        """Fold in the estimate at ``t`` (None: no estimate, the run restarts)."""
+        prev, self._t = self._t, t
+        if target is None or prev is None or not 0.0 < t - prev <= 0.5:
+            self.mean_rad_s = 0.0 if target is None else signed_turn_rate(target)
+            self._since = None if target is None else t
+            return
+        w = signed_turn_rate(target)
+        dt = t - prev
+        mean = self.mean_rad_s + dt / (duration_s / 3.0 + dt) * (w - self.mean_rad_s)
+        if abs(w - mean) > band_rad_s or mean * self.mean_rad_s < 0.0:
+            self._since = t
+        self.mean_rad_s = mean
+
+    def steady_for(self, t: float) -> float:
+        """How long (s) the turn rate has been steady at ``t``; 0 before any estimate."""
+        return 0.0 if self._since is None else t - self._since
+
+
 class Mission:
     """Decides the mode from the ego estimate, the platform estimate and the onboard land detector."""
 
@@ -308,6 +365,7 @@ class Mission:
         self._tilt_wait = False
         self.descent_hold = False
         """True while the descent holds its height (a marginal gate); the guidance reads it."""
+        self._turn = SteadyTurn()
         self.takeoff_point_W = np.zeros(3)
         self.history: list[tuple[float, Mode, str]] = []
         self.events: list[FailsafeEvent] = []
@@ -362,15 +420,21 @@ class Mission:
             or (ceiling is not None and self.tilt_lp_rad > ceiling)
         )
 
-    def _turning_hard(self, target: PlatformEstimate) -> bool:
-        """The commit gate is shut: the platform estimate accelerates (turns) harder than the limit. A
-        non-finite acceleration shuts it too (the prediction the committed descent would fly on is not
-        trustworthy)."""
-        limit = self.config.land_commit_max_platform_accel_mps2
+    def _turning_hard(self, t: float, target: PlatformEstimate) -> bool:
+        """The commit gate is shut: the platform estimate accelerates (turns) harder than the limit, and
+        not in a turn it has held steady for ``land_steady_turn_s`` (up to
+        ``land_steady_turn_max_accel_mps2``). A non-finite acceleration shuts it too (the prediction the
+        committed descent would fly on is not trustworthy)."""
+        cfg = self.config
+        limit = cfg.land_commit_max_platform_accel_mps2
         if limit is None:
             return False
         a = math.hypot(float(target.a_WP[0]), float(target.a_WP[1]))
-        return not a <= limit
+        if a <= limit:
+            return False
+        if cfg.land_steady_turn_s is None or not a <= cfg.land_steady_turn_max_accel_mps2:
+            return True
+        return self._turn.steady_for(t) < cfg.land_steady_turn_s
 
     def _event(self, t: float, kind: str, reason: str) -> None:
         self.events.append(FailsafeEvent(t, kind, reason))
@@ -430,6 +494,8 @@ class Mission:
             return MissionStatus(self.mode, True, self.reason, self.mode_since)
 
         self._update_tilt(t, ego)
+        if cfg.land_steady_turn_s is not None:
+            self._turn.update(t, target, cfg.land_steady_turn_s, cfg.land_steady_turn_band_rad_s)
         age = self._age(t, target)
         over_budget = (
             cfg.time_budget_s is not None
@@ -577,7 +643,7 @@ class Mission:
             return
         height = float(ego.p_WB[2] - target.p_WP[2])
         no_lull = self._no_lull()
-        turning = self._turning_hard(target)
+        turning = self._turning_hard(t, target)
         if (
             self._committed_since is None
             and height <= cfg.land_commit_height_m

@@ -66,6 +66,10 @@ class Contact:
     """Speed relative to the touched surface (m/s)."""
     tilt_rad: float
     """Angle between the body z axis and the vertical (rad)."""
+    platform_speed_mps: float = 0.0
+    """The platform's horizontal speed at the contact (m/s), whatever was touched."""
+    platform_turn_rate_rad_s: float = 0.0
+    """The platform's heading rate at the contact (rad/s, counter-clockwise)."""
 
 
 def judge_contact(
@@ -141,6 +145,8 @@ def judge_contact(
         rel_horizontal_speed_mps=vh,
         rel_speed_mps=math.sqrt(vz * vz + vh * vh),
         tilt_rad=tilt,
+        platform_speed_mps=math.hypot(float(platform.v_WP[0]), float(platform.v_WP[1])),
+        platform_turn_rate_rad_s=float(platform.yaw_rate),
     )
 
 

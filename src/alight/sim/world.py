@@ -503,6 +503,8 @@ class World:
             "touchdown_rel_vertical_speed_mps": None if c is None else c.rel_vertical_speed_mps,
             "touchdown_rel_horizontal_speed_mps": None if c is None else c.rel_horizontal_speed_mps,
             "touchdown_tilt_deg": None if c is None else math.degrees(c.tilt_rad),
+            "touchdown_platform_speed_mps": None if c is None else c.platform_speed_mps,
+            "touchdown_platform_turn_rate_rad_s": None if c is None else c.platform_turn_rate_rad_s,
             "contact_surface": None if c is None else c.surface,
             "contact_reason": None if c is None else c.reason,
             "outcome_reason": self.outcome_reason,
