@@ -20,6 +20,7 @@ or a False return). The test ``tests/estimation/test_estimator_fuzz.py`` runs a 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import signal
@@ -37,7 +38,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from robustness_harness import _call, _on_alarm  # noqa: E402  (the harness's watchdog)
 
 from alight.cameras import CameraMount, MountedCamera  # noqa: E402
+from alight.errors import MeasurementError  # noqa: E402
 from alight.estimation import PLATFORM_ESTIMATORS, EgoEkf, EgoEkfConfig  # noqa: E402
+from alight.estimation.ego_ekf import IMU_RUN  # noqa: E402
 from alight.types import EgoState, PlatformMeasurement  # noqa: E402
 
 GOOD_S = 5.0
@@ -92,11 +95,18 @@ BAD_COVS: list[tuple[str, Callable[[], Any]]] = [
 
 class Counts:
     def __init__(self) -> None:
-        self.c = {"cases": 0, "crashes": 0, "hangs": 0, "nan": 0, "wedged": 0, "refused": 0}
+        self.c = {"cases": 0, "crashes": 0, "hangs": 0, "nan": 0, "wedged": 0, "warnings": 0, "refused": 0}
         self.examples: list[str] = []
 
     def call(self, kind: str, fn: Callable[[], Any], limit_s: float) -> tuple[str, Any]:
-        status, value = _call(fn, limit_s)
+        """The bad input's call under the watchdog; a numpy or Python warning it raises is counted (a
+        refusal is clean: no overflow on the way to it)."""
+        with warnings.catch_warnings(record=True) as caught, np.errstate(all="warn"):
+            warnings.simplefilter("always")
+            status, value = _call(fn, limit_s)
+        if caught:
+            self.c["warnings"] += 1
+            self.examples.append(f"warning:{kind}:{str(caught[0].message)[:60]}")
         if status == "crash":
             self.c["crashes"] += 1
             self.examples.append(f"crash:{kind}:{type(value).__name__}:{str(value)[:80]}")
@@ -247,6 +257,12 @@ EGO_KINDS = (
     + [f"reloc_t:{k}" for k in BAD_TIMES]
     + [f"reloc_p:{k}" for k, _ in BAD_VECTORS if k != "outlier_50m"]
     + ["stretch:190g_1s", "stretch:spin_90rads_1s", "stretch:gap_1000s"]
+    + [f"first_imu:{k}" for k in ("future_1e3", "future_1e6", "1e300", "inf", "nan", "past_50", "str")]
+    + [f"first_odo:{k}" for k in ("future_1e3", "future_1e6", "1e12")]
+    + [f"jump_run:{k}" for k in ("2", "1e3", "1e6", "1e8")]
+    + [f"first_run:{k}" for k in ("1e3", "1e6")]
+    + [f"reloc_q:{k}" for k in ("1e300", "zero", "nan")]
+    + [f"reloc_v:{k}" for k in ("1e300", "1e6", "nan")]
 )
 
 
@@ -299,8 +315,45 @@ def _stretch(ekf: EgoEkf, what: str, t: float) -> Callable[[], Any]:
     return go
 
 
+def _restarted(ekf: EgoEkf, t: float) -> None:
+    """The filter initialised again at ``t`` from its own estimate: the next IMU sample is its first."""
+    s = ekf.state()
+    ekf.initialize(t, s.p_WB, s.v_WB, s.q_WB)
+
+
+def _first_case(ekf: EgoEkf, where: str, what: str, t: float) -> Callable[[], Any]:
+    """A bad first sample or message after :meth:`EgoEkf.initialize` (``first_*``), or a run of
+    ``IMU_RUN`` samples in order after a jump of the clock (``*_run``): the filter may believe the run,
+    and must then go on from it."""
+
+    def go() -> Any:
+        if where != "jump_run":
+            _restarted(ekf, t)
+        if where == "first_imu":
+            return ekf.predict_imu(_bad_time(what, t), _F_HOVER, np.zeros(3))
+        if where == "first_odo":
+            t_odo = 1e12 if what == "1e12" else _bad_time(what, t)
+            return ekf.update_odometry(t_odo, np.zeros(3), _Q0)
+        jump = float(what)
+        for k in range(IMU_RUN):  # all but the last refused, unless the jump is within the tolerance
+            with contextlib.suppress(MeasurementError):
+                ekf.predict_imu(t + jump + 0.005 * k, _F_HOVER, np.zeros(3))
+        return None
+
+    return go
+
+
 def _ego_case(ekf: EgoEkf, kind: str, t: float) -> Callable[[], Any]:
     where, _, what = kind.partition(":")
+    if where.startswith("first_") or where.endswith("_run"):
+        return _first_case(ekf, where, what, t)
+    if where in ("reloc_q", "reloc_v"):
+        bad = {"1e300": [1e300, 0.0, 0.0], "1e6": [1e6, 0.0, 0.0], "zero": [0.0] * 3, "nan": [math.nan] * 3}
+        if where == "reloc_q":
+            return partial(
+                ekf.relocalize, t, np.zeros(3), np.array([*bad[what], 1.0 if what != "zero" else 0.0])
+            )
+        return partial(ekf.relocalize, t, np.zeros(3), _Q0, bad[what])
     dt = t + 0.005
     if where == "imu_t":
         return partial(ekf.predict_imu, _bad_time(what, t), _F_HOVER, np.zeros(3))
@@ -370,7 +423,7 @@ def run(n_cases: int = 2000, seed: int = 0, limit_s: float = 10.0) -> dict[str, 
     """The whole harness; the JSON summary as a dict."""
     signal.signal(signal.SIGALRM, _on_alarm)
     with warnings.catch_warnings(), np.errstate(all="ignore"):
-        # garbage in: numpy's overflow and casting warnings are expected, what counts is the behaviour
+        # the good data's calls; a bad input's own call counts its warnings (Counts.call)
         warnings.simplefilter("ignore")
         return _run(n_cases, seed, limit_s)
 
@@ -381,7 +434,9 @@ def _run(n_cases: int, seed: int, limit_s: float) -> dict[str, Any]:
         name: run_platform(name, n_cases, seed, limit_s) for name in sorted(PLATFORM_ESTIMATORS)
     }
     per["ego_ekf"] = run_ego(n_cases, seed, limit_s)
-    totals = {k: sum(int(b[k]) for b in per.values()) for k in ("crashes", "hangs", "nan", "wedged")}
+    totals = {
+        k: sum(int(b[k]) for b in per.values()) for k in ("crashes", "hangs", "nan", "wedged", "warnings")
+    }
     return {
         "cases_per_estimator": n_cases,
         "seed": seed,
