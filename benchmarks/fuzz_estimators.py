@@ -28,6 +28,7 @@ import sys
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -38,9 +39,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from robustness_harness import _call, _on_alarm  # noqa: E402  (the harness's watchdog)
 
 from alight.cameras import CameraMount, MountedCamera  # noqa: E402
+from alight.cameras.omni import OmniCamera  # noqa: E402
 from alight.errors import MeasurementError  # noqa: E402
 from alight.estimation import PLATFORM_ESTIMATORS, EgoEkf, EgoEkfConfig  # noqa: E402
 from alight.estimation.ego_ekf import IMU_RUN  # noqa: E402
+from alight.estimation.kim_ukf import camera_state_W  # noqa: E402
 from alight.types import EgoState, PlatformMeasurement  # noqa: E402
 
 GOOD_S = 5.0
@@ -94,9 +97,13 @@ BAD_COVS: list[tuple[str, Callable[[], Any]]] = [
 
 
 class Counts:
-    def __init__(self) -> None:
+    """The per-estimator counts. ``refusals``: the documented errors (default: the harness's
+    ``EstimationError`` and ``ImageError``); any other raised by a bad input's call is a crash."""
+
+    def __init__(self, refusals: tuple[type[BaseException], ...] | None = None) -> None:
         self.c = {"cases": 0, "crashes": 0, "hangs": 0, "nan": 0, "wedged": 0, "warnings": 0, "refused": 0}
         self.examples: list[str] = []
+        self.refusals = refusals
 
     def call(self, kind: str, fn: Callable[[], Any], limit_s: float) -> tuple[str, Any]:
         """The bad input's call under the watchdog; a numpy or Python warning it raises is counted (a
@@ -104,6 +111,8 @@ class Counts:
         with warnings.catch_warnings(record=True) as caught, np.errstate(all="warn"):
             warnings.simplefilter("always")
             status, value = _call(fn, limit_s)
+        if status == "refused" and self.refusals is not None and not isinstance(value, self.refusals):
+            status = "crash"
         if caught:
             self.c["warnings"] += 1
             self.examples.append(f"warning:{kind}:{str(caught[0].message)[:60]}")
@@ -238,6 +247,153 @@ def run_platform(name: str, n_cases: int, seed: int, limit_s: float) -> dict[str
         t, used_late = _platform_good(est, t, rng, GOOD_S, limit_s)
         st_status, st = _call(partial(est.state, t), limit_s)
         off = st_status != "ok" or not float(np.linalg.norm(st.p_WP - _truth(t))) <= MAX_ERROR_M
+        if not used_late or off:
+            counts.flag("wedged", kind)
+    return {**counts.c, "wall_s": round(time.perf_counter() - t0, 1), "examples": counts.examples[:8]}
+
+
+# ---- Kim's UKF on pixels (paper 003's path) --------------------------------------------------------
+
+_PIXEL_OFFSET = np.array([1.0, 0.5, 10.0])
+"""The vehicle follows the target at this offset (m, W): the target stays in view, off the centre."""
+
+
+class _PixelEgo:
+    """What :meth:`KimUkf.update_pixel` reads of an ego state, holding whatever values a case gives."""
+
+    def __init__(self, p: Any, v: Any, R: Any) -> None:
+        self.p_WB, self.v_WB, self.R_WB = p, v, R
+
+
+def _pixel_ego(t: float) -> _PixelEgo:
+    return _PixelEgo(_truth(t) + _PIXEL_OFFSET, np.array([1.5, 0.0, 0.0]), np.eye(3))
+
+
+def _true_pixel(est: Any, t: float) -> Any:
+    """The target's pixel from the vehicle at ``t`` through the filter's own lens."""
+    p_WC, R_WC, _ = camera_state_W(_pixel_ego(t), est.mount)
+    return est.lens.project_exact((R_WC.T @ (_truth(t) - p_WC))[None])[0]
+
+
+def _bad_ego(what: str, t: float) -> Any:
+    good = _pixel_ego(t)
+    p, v, R = good.p_WB, good.v_WB, good.R_WB
+    return {
+        "p_nan": _PixelEgo([math.nan, 0, 10], v, R), "p_1e300": _PixelEgo([1e300, 0, 1e300], v, R),
+        "p_short": _PixelEgo([0.0, 10.0], v, R), "p_str": _PixelEgo("p", v, R),
+        "p_complex": _PixelEgo(p + 1j, v, R), "below_deck": _PixelEgo(p * [1, 1, -1], v, R),
+        "v_nan": _PixelEgo(p, [math.nan, 0, 0], R), "v_1e300": _PixelEgo(p, [1e300, 0, 0], R),
+        "v_none": _PixelEgo(p, None, R), "R_zero": _PixelEgo(p, v, np.zeros((3, 3))),
+        "R_1e300": _PixelEgo(p, v, np.eye(3) * 1e300), "R_nan": _PixelEgo(p, v, np.full((3, 3), math.nan)),
+        "R_2x2": _PixelEgo(p, v, np.eye(2)), "R_none": _PixelEgo(p, v, None), "none": None, "str": "ego",
+    }[what]  # fmt: skip
+
+
+PIXEL_EGOS = [
+    "p_nan", "p_1e300", "p_short", "p_str", "p_complex", "below_deck", "v_nan", "v_1e300", "v_none",
+    "R_zero", "R_1e300", "R_nan", "R_2x2", "R_none", "none", "str",
+]  # fmt: skip
+PIXEL_VALUES: list[tuple[str, Callable[[Any], Any]]] = [
+    ("nan", lambda z: [math.nan, z[1]]), ("inf", lambda z: [math.inf, z[1]]),
+    ("1e300", lambda z: [1e300, 1e300]),
+    ("1e12", lambda z: [1e12, 0.0]), ("negative", lambda z: [-1e4, -1e4]), ("complex", lambda z: z + 1j),
+    ("short", lambda z: z[:1]), ("three", lambda z: [*z, 0.0]), ("2d", lambda z: np.zeros((2, 2))),
+    ("none", lambda z: None), ("str", lambda z: "px"), ("off_150px", lambda z: z + [150.0, 0.0]),
+]  # fmt: skip
+PIXEL_KINDS = (
+    [f"px_t:{k}" for k in BAD_TIMES]
+    + [f"px_z:{k}" for k, _ in PIXEL_VALUES]
+    + [f"px_ego:{k}" for k in PIXEL_EGOS]
+    + [f"pred_t:{k}" for k in BAD_TIMES]
+    + [f"pred_ego:{k}" for k in PIXEL_EGOS]
+    + [f"pred_sigma:{k}" for k in ("nan", "inf", "-1", "1e300", "str", "none")]
+    + [f"lock:{k}" for k in ("off_150px_1s", "off_40px_1s", "still_1s")]
+)
+
+
+def _pixel_case(est: Any, kind: str, t: float) -> Callable[[], Any]:
+    where, _, what = kind.partition(":")
+    z = _true_pixel(est, t)
+    if where == "px_t":
+        return partial(est.update_pixel, _bad_time(what, t), z, _pixel_ego(t))
+    if where == "px_z":
+        return partial(est.update_pixel, t, dict(PIXEL_VALUES)[what](z), _pixel_ego(t))
+    if where == "px_ego":
+        return partial(est.update_pixel, t, z, _bad_ego(what, t))
+    if where == "pred_t":
+        return partial(est.predict_pixel, _bad_time(what, t), _pixel_ego(t))
+    if where == "pred_ego":
+        return partial(est.predict_pixel, t, _bad_ego(what, t))
+    if where == "pred_sigma":
+        n_sigma = {"nan": math.nan, "inf": math.inf, "-1": -1.0, "1e300": 1e300, "str": "3", "none": None}
+        return partial(est.predict_pixel, t, _pixel_ego(t), n_sigma[what])
+    if where == "lock":
+        return partial(_false_lock, est, what, t)
+    raise ValueError(kind)
+
+
+def _false_lock(est: Any, what: str, t: float) -> None:
+    """A second of consistent wrong pixels at 20 Hz (a distractor the detector locked on): offset from the
+    target, or a target that stopped while the vehicle flies on."""
+    for k in range(20):
+        tk = t + 0.05 * k
+        est.predict(tk)
+        z = _true_pixel(est, t if what == "still_1s" else tk)
+        z = z + {"off_150px_1s": [150.0, 0.0], "off_40px_1s": [0.0, 40.0]}.get(what, [0.0, 0.0])
+        est.update_pixel(tk, z, _pixel_ego(tk))
+
+
+def _pixel_good(est: Any, t: float, rng: np.random.Generator, seconds: float, limit_s: float) -> tuple:
+    """``seconds`` of good pixels at 20 Hz (1 px noise) from ``t``, each after the detector's
+    prediction; the new time, and whether any of the last second's were used."""
+    used_late = False
+    n = int(round(seconds / 0.05))
+    for i in range(n):
+        t += 0.05
+        _call(partial(est.predict, t), limit_s)
+        _call(partial(est.predict_pixel, t, _pixel_ego(t)), limit_s)
+        z = _true_pixel(est, t) + rng.normal(0, 1.0, 2)
+        status, value = _call(partial(est.update_pixel, t, z, _pixel_ego(t)), limit_s)
+        used_late |= i >= n - 20 and status == "ok" and value is True
+    return t, used_late
+
+
+def _pixel_output_finite(value: Any) -> bool:
+    if value is None or value is False or value is True:
+        return True
+    zhat, radius = value
+    return _finite(zhat) and math.isfinite(radius) and radius > 0
+
+
+def run_kim_pixel(n_cases: int, seed: int, limit_s: float) -> dict[str, Any]:
+    """Kim's UKF with the kim_kaist lens (a synthetic 186 deg fisheye) on its pixel path: ``update_pixel``
+    and ``predict_pixel``, each bad input followed by 5 s of good pixels. A refusal is a False return or
+    a :class:`~alight.errors.MeasurementError` (any other error, ``EstimationError`` included, counts)."""
+    rng = np.random.default_rng(seed)
+    lens = OmniCamera.synthetic(640, 480, fov_deg=186.0)
+    spec = PLATFORM_ESTIMATORS["kim_ukf"]
+    # the kim_kaist flight's values: the quartic lens model, a track confirmed by 5 updates
+    params = replace(spec.default_params(), measurement_model="quartic", confirm_updates=5)
+    est = spec.build(params, MountedCamera(camera=lens, mount=CameraMount.downward()))
+    counts = Counts(refusals=(MeasurementError,))
+    t, _ = _pixel_good(est, 0.0, rng, 2.0, WARMUP_LIMIT_S)  # numba compiles on first use
+    t0 = time.perf_counter()
+    for i in range(n_cases):
+        kind = PIXEL_KINDS[int(rng.integers(len(PIXEL_KINDS)))] if i >= len(PIXEL_KINDS) else PIXEL_KINDS[i]
+        counts.c["cases"] += 1
+        t += 0.05
+        _call(partial(est.predict, t), limit_s)
+        status, value = counts.call(kind, _pixel_case(est, kind, t), limit_s)
+        if kind.startswith("lock:"):
+            t += 1.0
+        st_status, st = _call(partial(est.state, t), limit_s)
+        if st_status == "ok" and not _finite(st.p_WP, st.v_WP, st.cov_p_WP):
+            counts.flag("nan", kind)
+        elif status == "ok" and not _pixel_output_finite(value):
+            counts.flag("nan", kind)
+        t, used_late = _pixel_good(est, t, rng, GOOD_S, limit_s)
+        st_status, st = _call(partial(est.state, t), limit_s)
+        off = st_status != "ok" or not float(np.linalg.norm(st.p_WP[:2] - _truth(t)[:2])) <= MAX_ERROR_M
         if not used_late or off:
             counts.flag("wedged", kind)
     return {**counts.c, "wall_s": round(time.perf_counter() - t0, 1), "examples": counts.examples[:8]}
@@ -434,6 +590,7 @@ def _run(n_cases: int, seed: int, limit_s: float) -> dict[str, Any]:
         name: run_platform(name, n_cases, seed, limit_s) for name in sorted(PLATFORM_ESTIMATORS)
     }
     per["ego_ekf"] = run_ego(n_cases, seed, limit_s)
+    per["kim_ukf_pixel"] = run_kim_pixel(n_cases, seed, limit_s)
     totals = {
         k: sum(int(b[k]) for b in per.values()) for k in ("crashes", "hangs", "nan", "wedged", "warnings")
     }

@@ -15,9 +15,19 @@ from typing import Any
 import numpy as np
 import pytest
 
+from alight.cameras import CameraMount
 from alight.errors import MeasurementError
 from alight.estimation import EgoEkf
-from alight.estimation.guards import MAX_STEPS, StampRun, bounded_steps, check_times, check_vector
+from alight.estimation.guards import (
+    MAX_STEPS,
+    StampRun,
+    bounded_steps,
+    check_rotation,
+    check_times,
+    check_vector,
+)
+from alight.estimation.kim_ukf import camera_state_W
+from alight.numerics.rotation import quat_to_rotmat
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -39,11 +49,11 @@ def summary() -> dict[str, Any]:
 
 
 def test_every_estimator_survives_the_short_fuzz(summary: dict[str, Any]) -> None:
-    assert set(summary["estimators"]) == {"kim_ukf", "sdu_kf", "unicycle_ekf", "ego_ekf"}
+    assert set(summary["estimators"]) == {"kim_ukf", "sdu_kf", "unicycle_ekf", "ego_ekf", "kim_ukf_pixel"}
     for name, block in summary["estimators"].items():
         assert block["cases"] == 100, name
         assert block["refused"] > 50, name  # the bad inputs were refused, not silently taken
-        for k in ("crashes", "hangs", "nan", "wedged"):
+        for k in ("crashes", "hangs", "nan", "wedged", "warnings"):
             assert block[k] == 0, (name, k, block["examples"])
 
 
@@ -186,3 +196,55 @@ def test_ego_relocalize_refuses_what_is_not_a_pose_without_a_warning(p: Any, q: 
         with pytest.raises(MeasurementError):
             ekf.relocalize(0.0, p, q, v)
     assert np.array_equal(ekf.nominal, before)
+
+
+class _Pose:
+    def __init__(self, p: Any, v: Any, R: Any) -> None:
+        self.p_WB, self.v_WB, self.R_WB = p, v, R
+
+
+def test_check_rotation_takes_rotations_and_refuses_the_rest() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = rng.normal(size=4)
+        R = quat_to_rotmat(q / np.linalg.norm(q))
+        assert check_rotation(R, "R", "test") is not None
+    reflection = np.diag([1.0, 1.0, -1.0])
+    for bad in (np.zeros((3, 3)), np.eye(3) * 1e300, np.eye(3) * 1.001, reflection, np.eye(2), None, "R"):
+        with warnings.catch_warnings(), np.errstate(all="warn"):
+            warnings.simplefilter("error")
+            with pytest.raises(MeasurementError):
+                check_rotation(bad, "R", "test")
+
+
+@pytest.mark.parametrize(
+    "pose",
+    [
+        None,
+        "ego",
+        _Pose([math.nan, 0.0, 10.0], np.zeros(3), np.eye(3)),
+        _Pose([1e300, 0.0, 1e300], np.zeros(3), np.eye(3)),
+        _Pose([0.0, 10.0], np.zeros(3), np.eye(3)),
+        _Pose(np.array([0.0, 0.0, 10.0]) + 1j, np.zeros(3), np.eye(3)),
+        _Pose([0.0, 0.0, 10.0], None, np.eye(3)),
+        _Pose([0.0, 0.0, 10.0], [1e300, 0.0, 0.0], np.eye(3)),
+        _Pose([0.0, 0.0, 10.0], np.zeros(3), np.zeros((3, 3))),
+        _Pose([0.0, 0.0, 10.0], np.zeros(3), None),
+    ],
+)
+def test_kim_camera_state_refuses_an_ego_state_that_is_not_one(pose: Any) -> None:
+    """The pixel path's ego input (update_pixel, predict_pixel): one documented refusal, no warning on the
+    way (it was an AttributeError, a ValueError from numpy, an overflow warning or a NaN state)."""
+    with warnings.catch_warnings(), np.errstate(all="warn"):
+        warnings.simplefilter("error")
+        with pytest.raises(MeasurementError):
+            camera_state_W(pose, CameraMount.downward())
+
+
+def test_kim_camera_state_of_a_good_pose_is_unchanged() -> None:
+    p_WC, R_WC, v_WC = camera_state_W(
+        _Pose(np.array([1.0, 2.0, 10.0]), np.ones(3), np.eye(3)), CameraMount.downward()
+    )
+    assert (
+        np.isfinite(p_WC).all() and np.allclose(R_WC.T @ R_WC, np.eye(3)) and np.array_equal(v_WC, np.ones(3))
+    )
