@@ -2,19 +2,25 @@
 
     PYTHONPATH=src python benchmarks/fuzz_estimators.py [--cases 2000] [--seed 0] [--limit-s 10]
 
-prints a JSON summary. Each estimator (the platform registry's and the ego EKF) follows a good stream
-(a platform at 1.5 m/s seen at 10 Hz with 5 cm noise; a hovering vehicle with a 200 Hz IMU and 20 Hz
-odometry); every case is one bad input on one boundary (a camera measurement, telemetry fix, clock,
-query, pixel prediction, IMU sample or batch, odometry, relocalisation: non-numbers, None, strings,
-complex, wrong shapes, NaN, inf, 1e300, 1e12 m, far-future and far-past stamps, covariances that are not
-symmetric positive definite, absurd IMU magnitudes and a stretch of 190 g), each call under a watchdog
-(SIGALRM, ``robustness_harness._call``). After each bad input the estimator gets 5 s of good data.
+prints a JSON summary. Each estimator (the platform registry's, the ego EKF, and Kim's UKF on its pixel
+path) follows a good stream (a platform at 1.5 m/s seen at 10 Hz with 5 cm noise; a hovering vehicle
+with a 200 Hz IMU and 20 Hz odometry; the pad's pixel through the kim_kaist lens at 20 Hz with 1 px
+noise, from a vehicle following 10 m above); every case is one bad input on one boundary (a camera
+measurement, telemetry fix, clock, query, pixel prediction, IMU sample or batch, odometry,
+relocalisation, a first IMU sample or odometry message after ``initialize``, a run of IMU samples after
+a clock jump of 2 s to 1e8 s, a pixel, the ego state and ``n_sigma`` of the pixel path, a second of a
+false lock: non-numbers, None, strings, complex, wrong shapes, NaN, inf, 1e300, 1e12 m, far-future and
+far-past stamps, covariances that are not symmetric positive definite, rotations that are not, absurd
+IMU magnitudes and a stretch of 190 g), each call under a watchdog (SIGALRM,
+``robustness_harness._call``). After each bad input the estimator gets 5 s of good data.
 
 Counted per estimator: ``crashes`` (an exception other than the documented
-:class:`~alight.errors.EstimationError` / ``MeasurementError``), ``hangs`` (a call over the limit),
-``nan`` (a non-finite state or output after the bad input), ``wedged`` (after the 5 s of good data, the
-last second's data were not used or the estimate is more than 2 m off), ``refused`` (documented refusals
-or a False return). The test ``tests/estimation/test_estimator_fuzz.py`` runs a short version.
+:class:`~alight.errors.EstimationError` / ``MeasurementError``; on the pixel path only
+``MeasurementError``), ``hangs`` (a call over the limit), ``nan`` (a non-finite state or output after the
+bad input), ``wedged`` (after the 5 s of good data, the last second's data were not used or the estimate
+is more than 2 m off), ``warnings`` (the bad input's call raised a numpy or Python warning, such as an
+overflow on the way to its refusal), ``refused`` (documented refusals or a False return). The test
+``tests/estimation/test_estimator_fuzz.py`` runs a short version.
 """
 
 from __future__ import annotations
