@@ -696,7 +696,9 @@ class EgoEkf:
     ``MAX_POSITION_M``, a speed beyond ``MAX_SPEED_MPS``, a time beyond ``MAX_TIME_S`` or a quaternion
     that is not a rotation (norm outside [0.5, 2]: zero, NaN) raises
     :class:`alight.errors.MeasurementError` and leaves the filter untouched; odometry stamped more than
-    ``FUTURE_TOLERANCE_S`` after the last IMU sample is refused; with ``odometry_gate`` a position more
+    ``FUTURE_TOLERANCE_S`` after the filter's clock (the last IMU sample, or before the first one the time
+    :meth:`initialize` was given) is refused, unless ``ODOMETRY_RUN`` of them in order say, before the
+    filter has propagated, that the clock it started from was wrong; with ``odometry_gate`` a position more
     than ``GATE_SIGMA`` standard deviations from the prediction is refused, and ``odometry_reset_after``
     refusals in a row restart the filter at the odometry pose. :meth:`predict_imu_many` checks that
     its arrays hold ``n`` samples before the compiled loop reads them.
