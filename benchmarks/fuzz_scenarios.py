@@ -234,6 +234,9 @@ class Counts:
             "not_one_line": 0, "non_finite_accepted": 0,
         }  # fmt: skip
         self.examples: list[str] = []
+        self.build_refusals: list[str] = []
+        """What the loader took and the flight's build refused (one line each): not failures, but a
+        check the loader could make earlier."""
 
     def fail(self, what: str, kind: str, detail: str = "") -> None:
         self.c[what] += 1
@@ -266,6 +269,7 @@ def check_variant(path: Path, kind: str, counts: Counts, limit_s: float, built: 
         counts.c["accepted"] += 1
     elif status == "refused" and len(str(value).splitlines()) == 1:
         counts.c["refused_at_build"] += 1
+        counts.build_refusals.append(f"{kind}: {str(value)[:120]}")
     elif status == "refused":
         counts.fail("not_one_line", kind, str(value))
     else:
@@ -295,6 +299,7 @@ def run(n: int = 1000, seed: int = 0, limit_s: float = 20.0) -> dict[str, Any]:
         "per_call_limit_s": limit_s,
         "wall_s": round(time.perf_counter() - t0, 1),
         "examples": counts.examples[:12],
+        "build_refusals": counts.build_refusals[:6],
     }
 
 
