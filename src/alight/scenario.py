@@ -695,14 +695,28 @@ class EnergySpec(_Strict):
     """The setting of ``qos: fixed`` (default: the highest quality of the shipped model)."""
 
 
+MIN_CONTACT_SPEED_MPS = 0.05
+"""Slowest contact-speed limit of the judge (m/s): it samples the speed at the 1 kHz physics step, in
+which gravity alone adds 0.0098 m/s, so a limit below five times that judges the integrator, not the
+landing (1e-9 m/s flew today and judged every touchdown a crash)."""
+
+
 class ContactSpec(_Strict):
     """How the simulator judges a landing (ground truth) and its contact model of the feet."""
 
     gear_half_width_m: Annotated[float, Field(ge=0, le=10.0, allow_inf_nan=False)] = 0.2
     """Half the landing gear's footprint: the feet sit at (+-w, +-w) under the body, and the centre must
     stay this far inside the pad's edges (m)."""
-    max_vertical_speed_mps: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 1.0
-    max_horizontal_speed_mps: Annotated[float, Field(gt=0, le=100.0, allow_inf_nan=False)] = 0.75
+    max_vertical_speed_mps: Annotated[
+        float, Field(ge=MIN_CONTACT_SPEED_MPS, le=100.0, allow_inf_nan=False)
+    ] = 1.0
+    """Landed only below this vertical speed relative to the pad (m/s), at least 0.05
+    (:data:`MIN_CONTACT_SPEED_MPS`)."""
+    max_horizontal_speed_mps: Annotated[
+        float, Field(ge=MIN_CONTACT_SPEED_MPS, le=100.0, allow_inf_nan=False)
+    ] = 0.75
+    """Landed only below this horizontal speed relative to the pad (m/s), at least 0.05
+    (:data:`MIN_CONTACT_SPEED_MPS`)."""
     max_tilt_deg: Annotated[float, Field(gt=0, le=90.0, allow_inf_nan=False)] = 25.0
     settle_s: PositiveFloat = 2.0
     """After the motors stop, the vehicle must still be on the pad (or, after an abort's landing, where

@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import sys
+import warnings
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -14,9 +15,19 @@ from typing import Any
 import numpy as np
 import pytest
 
+from alight.cameras import CameraMount
 from alight.errors import MeasurementError
 from alight.estimation import EgoEkf
-from alight.estimation.guards import MAX_STEPS, StampRun, bounded_steps, check_times, check_vector
+from alight.estimation.guards import (
+    MAX_STEPS,
+    StampRun,
+    bounded_steps,
+    check_rotation,
+    check_times,
+    check_vector,
+)
+from alight.estimation.kim_ukf import camera_state_W
+from alight.numerics.rotation import quat_to_rotmat
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -38,11 +49,11 @@ def summary() -> dict[str, Any]:
 
 
 def test_every_estimator_survives_the_short_fuzz(summary: dict[str, Any]) -> None:
-    assert set(summary["estimators"]) == {"kim_ukf", "sdu_kf", "unicycle_ekf", "ego_ekf"}
+    assert set(summary["estimators"]) == {"kim_ukf", "sdu_kf", "unicycle_ekf", "ego_ekf", "kim_ukf_pixel"}
     for name, block in summary["estimators"].items():
         assert block["cases"] == 100, name
         assert block["refused"] > 50, name  # the bad inputs were refused, not silently taken
-        for k in ("crashes", "hangs", "nan", "wedged"):
+        for k in ("crashes", "hangs", "nan", "wedged", "warnings"):
             assert block[k] == 0, (name, k, block["examples"])
 
 
@@ -108,3 +119,132 @@ def test_ego_gate_restart_does_not_keep_the_velocity_that_carried_it_away() -> N
     assert ekf.n_odometry_resets >= 1
     assert ekf.n_odometry_updates > n + 50
     assert float(np.linalg.norm(ekf.state().v_WB)) < 0.5
+
+
+def _fresh() -> EgoEkf:
+    ekf = EgoEkf()
+    ekf.initialize(0.0, np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    return ekf
+
+
+@pytest.mark.parametrize("t_first", [1e3, 1e6, 1e8])
+def test_ego_first_imu_sample_far_in_the_future_is_refused(t_first: float) -> None:
+    """The first IMU sample after initialize is held to the clock's future tolerance like any other: it
+    used to be taken as the filter time, and every real sample after it was "before the filter time"."""
+    ekf = _fresh()
+    with pytest.raises(MeasurementError):
+        ekf.predict_imu(t_first, [0.0, 0.0, 9.81], np.zeros(3))
+    assert ekf.t == 0.0
+    _hovering(1.0, ekf)
+    assert ekf.n_odometry_updates == 20
+    assert ekf.t == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(("jump", "restarts"), [(2.0, 0), (100.0, 0), (1e3, 1), (1e6, 1), (1e8, 1)])
+def test_ego_believed_clock_jump_beyond_the_horizon_restarts(jump: float, restarts: int) -> None:
+    """A run of IMU samples after a jump of the clock is believed; up to MAX_HORIZON_S the gap is
+    propagated, beyond it the filter restarts at the run (a 1e6 s propagation grew the covariance to
+    1e32, and 98 of the next 100 odometry updates then failed as not positive definite)."""
+    ekf = _fresh()
+    _hovering(0.5, ekf)
+    t0 = ekf.t
+    for k in range(20):
+        try:
+            ekf.predict_imu(t0 + jump + 0.005 * k, [0.0, 0.0, 9.81], np.zeros(3))
+        except MeasurementError:
+            assert k < 19
+    assert ekf.t == pytest.approx(t0 + jump + 0.095)
+    assert ekf.n_clock_restarts == restarts
+    n = ekf.n_odometry_updates
+    _hovering(5.0, ekf)
+    assert ekf.n_odometry_updates == n + 100
+    assert float(np.abs(ekf.covariance).max()) < 1.0
+    assert float(np.linalg.norm(ekf.state().p_WB)) < 0.1
+
+
+def test_ego_first_odometry_keeps_to_the_clock_of_initialize() -> None:
+    """Before the filter has propagated, its clock is the one it was initialised at: a first message far in
+    the future is refused (counted), and a run of them in order restarts the filter at the last one."""
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    ekf = _fresh()
+    assert not ekf.update_odometry(1e6, np.zeros(3), q)
+    assert ekf.n_odometry_rejected == 1 and ekf.t == 0.0
+    assert ekf.update_odometry(0.025, np.zeros(3), q)
+    ekf = _fresh()
+    for k in range(10):
+        fused = ekf.update_odometry(1e6 + 0.025 * k, np.array([1.0, 0.0, 0.0]), q)
+        assert fused == (k == 9)
+    assert ekf.n_clock_restarts == 1 and ekf.t == pytest.approx(1e6 + 0.225)
+    assert ekf.state().p_WB == pytest.approx([1.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    ("p", "q", "v"),
+    [
+        ([1e300, 1e300, 0.0], [0.0, 0.0, 0.0, 1.0], None),
+        ([0.0, 0.0, 0.0], [1e300, 0.0, 0.0, 1.0], None),
+        ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [1e300, 0.0, 0.0]),
+        ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], None),
+        ([math.nan, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], None),
+    ],
+)
+def test_ego_relocalize_refuses_what_is_not_a_pose_without_a_warning(p: Any, q: Any, v: Any) -> None:
+    ekf = _fresh()
+    before = ekf.nominal
+    with warnings.catch_warnings(), np.errstate(all="warn"):
+        warnings.simplefilter("error")  # an overflow on the way to the refusal fails here
+        with pytest.raises(MeasurementError):
+            ekf.relocalize(0.0, p, q, v)
+    assert np.array_equal(ekf.nominal, before)
+
+
+class _Pose:
+    def __init__(self, p: Any, v: Any, R: Any) -> None:
+        self.p_WB, self.v_WB, self.R_WB = p, v, R
+
+
+def test_check_rotation_takes_rotations_and_refuses_the_rest() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = rng.normal(size=4)
+        R = quat_to_rotmat(q / np.linalg.norm(q))
+        assert check_rotation(R, "R", "test") is not None
+    reflection = np.diag([1.0, 1.0, -1.0])
+    for bad in (np.zeros((3, 3)), np.eye(3) * 1e300, np.eye(3) * 1.001, reflection, np.eye(2), None, "R"):
+        with warnings.catch_warnings(), np.errstate(all="warn"):
+            warnings.simplefilter("error")
+            with pytest.raises(MeasurementError):
+                check_rotation(bad, "R", "test")
+
+
+@pytest.mark.parametrize(
+    "pose",
+    [
+        None,
+        "ego",
+        _Pose([math.nan, 0.0, 10.0], np.zeros(3), np.eye(3)),
+        _Pose([1e300, 0.0, 1e300], np.zeros(3), np.eye(3)),
+        _Pose([0.0, 10.0], np.zeros(3), np.eye(3)),
+        _Pose(np.array([0.0, 0.0, 10.0]) + 1j, np.zeros(3), np.eye(3)),
+        _Pose([0.0, 0.0, 10.0], None, np.eye(3)),
+        _Pose([0.0, 0.0, 10.0], [1e300, 0.0, 0.0], np.eye(3)),
+        _Pose([0.0, 0.0, 10.0], np.zeros(3), np.zeros((3, 3))),
+        _Pose([0.0, 0.0, 10.0], np.zeros(3), None),
+    ],
+)
+def test_kim_camera_state_refuses_an_ego_state_that_is_not_one(pose: Any) -> None:
+    """The pixel path's ego input (update_pixel, predict_pixel): one documented refusal, no warning on the
+    way (it was an AttributeError, a ValueError from numpy, an overflow warning or a NaN state)."""
+    with warnings.catch_warnings(), np.errstate(all="warn"):
+        warnings.simplefilter("error")
+        with pytest.raises(MeasurementError):
+            camera_state_W(pose, CameraMount.downward())
+
+
+def test_kim_camera_state_of_a_good_pose_is_unchanged() -> None:
+    p_WC, R_WC, v_WC = camera_state_W(
+        _Pose(np.array([1.0, 2.0, 10.0]), np.ones(3), np.eye(3)), CameraMount.downward()
+    )
+    assert (
+        np.isfinite(p_WC).all() and np.allclose(R_WC.T @ R_WC, np.eye(3)) and np.array_equal(v_WC, np.ones(3))
+    )

@@ -103,6 +103,16 @@ BAD: list[tuple[str, str | bytes, str]] = [
         "controller.position_bandwidth_rad_s",
     ),
     ("tilt_1e3", G + "contact: {max_tilt_deg: 1000}\n", "contact.max_tilt_deg"),
+    (
+        "contact_vertical_1e-9",
+        G + "contact: {max_vertical_speed_mps: 1.0e-9}\n",
+        "contact.max_vertical_speed_mps: Input should be greater than or equal to 0.05",
+    ),
+    (
+        "contact_horizontal_0.01",
+        G + "contact: {max_horizontal_speed_mps: 0.01}\n",
+        "contact.max_horizontal_speed_mps: Input should be greater than or equal to 0.05",
+    ),
     ("accel_noise_1e9", G + "estimator: {accel_noise: 1.0e9}\n", "estimator.accel_noise"),
 ]
 

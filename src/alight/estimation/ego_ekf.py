@@ -38,6 +38,7 @@ from alight.errors import EstimationError, MeasurementError
 from alight.estimation.guards import (
     FUTURE_TOLERANCE_S,
     GATE_SIGMA,
+    MAX_HORIZON_S,
     MAX_POSITION_M,
     MAX_SPEED_MPS,
     StampRun,
@@ -46,6 +47,7 @@ from alight.estimation.guards import (
     check_real_inputs,
     check_time,
     check_times,
+    check_vector,
     imu_plausible,
     plausible_velocity,
 )
@@ -56,6 +58,10 @@ from alight.types import GRAVITY_MPS2, EgoState, FloatArray
 IMU_RUN = 20
 """IMU samples in a row, in order among themselves, that make :meth:`EgoEkf.predict_imu` believe a jump of
 the IMU clock beyond ``FUTURE_TOLERANCE_S`` (0.1 s of a 200 Hz IMU; :class:`~.guards.StampRun`)."""
+ODOMETRY_RUN = 10
+"""Odometry messages in a row, in order among themselves, that make :meth:`EgoEkf.update_odometry` believe
+a jump of the filter's clock beyond ``FUTURE_TOLERANCE_S`` before the filter has propagated (0.25 s at
+40 Hz)."""
 
 # status codes shared by the kernels of this subpackage
 OK = 0
@@ -690,7 +696,9 @@ class EgoEkf:
     ``MAX_POSITION_M``, a speed beyond ``MAX_SPEED_MPS``, a time beyond ``MAX_TIME_S`` or a quaternion
     that is not a rotation (norm outside [0.5, 2]: zero, NaN) raises
     :class:`alight.errors.MeasurementError` and leaves the filter untouched; odometry stamped more than
-    ``FUTURE_TOLERANCE_S`` after the last IMU sample is refused; with ``odometry_gate`` a position more
+    ``FUTURE_TOLERANCE_S`` after the filter's clock (the last IMU sample, or before the first one the time
+    :meth:`initialize` was given) is refused, unless ``ODOMETRY_RUN`` of them in order say, before the
+    filter has propagated, that the clock it started from was wrong; with ``odometry_gate`` a position more
     than ``GATE_SIGMA`` standard deviations from the prediction is refused, and ``odometry_reset_after``
     refusals in a row restart the filter at the odometry pose. :meth:`predict_imu_many` checks that
     its arrays hold ``n`` samples before the compiled loop reads them.
@@ -753,6 +761,10 @@ class EgoEkf:
         self._imu_run = StampRun(IMU_RUN)
         self.n_relocalizations = 0
         """Restarts at a pose the odometry announced as a jump of its frame (:meth:`relocalize`)."""
+        self.n_clock_restarts = 0
+        """Restarts after a believed jump of the clock longer than ``MAX_HORIZON_S``
+        (:mod:`alight.estimation.guards`): IMU samples or, before the first IMU sample, odometry."""
+        self._odometry_run = StampRun(ODOMETRY_RUN)
 
     def initialize(
         self,
@@ -805,9 +817,11 @@ class EgoEkf:
     def predict_imu(self, t: float, f_B: FloatArray, w_B: FloatArray) -> None:
         """Propagate to the IMU sample at ``t`` (s): specific force ``f_B`` (m/s^2) and rate ``w_B``
         (rad/s), both (3,) in B. Samples must come in time order; one at the filter time only refreshes
-        the body rates. A sample more than ``FUTURE_TOLERANCE_S`` after the filter time is refused
-        (:class:`alight.errors.MeasurementError`) unless ``IMU_RUN`` samples in a row, in order among
-        themselves, say the clock really jumped: then the gap is propagated in bounded steps."""
+        the body rates. A sample more than ``FUTURE_TOLERANCE_S`` after the filter time (the first one
+        after :meth:`initialize` included) is refused (:class:`alight.errors.MeasurementError`) unless
+        ``IMU_RUN`` samples in a row, in order among themselves, say the clock really jumped: then a gap
+        up to ``MAX_HORIZON_S`` is propagated in bounded steps, and a longer one, over which dead
+        reckoning says nothing, restarts the filter at the sample (:meth:`_restart_after_gap`)."""
         if not self._initialized:
             raise EstimationError("EgoEkf.predict_imu called before initialize")
         try:
@@ -818,8 +832,13 @@ class EgoEkf:
             dt = t - self._t
             if self._imu_run.times:
                 self._imu_run.clear()
-        else:  # the rare path, checked in full (before the first sample: a gap the odometry's hold judged)
+        else:  # the rare path, checked in full
             dt = self._imu_gap(t)
+        self._apply_imu(t, dt, f_B, w_B)
+
+    def _apply_imu(self, t: float, dt: float, f_B: FloatArray, w_B: FloatArray) -> None:
+        """The propagation of :meth:`predict_imu` over ``dt`` (s) to the sample at ``t``, whose time the
+        caller has judged (the IMU's rule, or the odometry's for a held sample)."""
         if np.iscomplexobj(f_B) or np.iscomplexobj(w_B):
             check_real_inputs(t, (f_B, w_B), "EgoEkf.predict_imu")  # raises
         try:
@@ -839,18 +858,31 @@ class EgoEkf:
         self._state_cache = None
 
     def _imu_gap(self, t: float) -> float:
-        """The gap to an IMU sample outside ``[filter time, + FUTURE_TOLERANCE_S]``, or a refusal."""
+        """The gap to an IMU sample outside ``[filter time, + FUTURE_TOLERANCE_S]``, or a refusal; 0 after
+        a believed gap longer than ``MAX_HORIZON_S`` (the filter restarted at ``t``)."""
         t = check_time(t, "EgoEkf.predict_imu")
         dt = t - self._t
         if dt < 0.0:
             raise EstimationError(f"EgoEkf.predict_imu: time {t} is before the filter time {self._t}")
-        if self._has_imu and not self._imu_run.add(t):
+        if not self._imu_run.add(t):
             raise MeasurementError(
                 f"EgoEkf.predict_imu: time {t} is more than {FUTURE_TOLERANCE_S:g} s after the filter time "
                 f"{self._t}"
             )
         self._imu_run.clear()
+        if dt > MAX_HORIZON_S:
+            self._restart_after_gap(t)
+            return 0.0
         return dt
+
+    def _restart_after_gap(self, t: float) -> None:
+        """A believed clock jump longer than ``MAX_HORIZON_S``: integrating the held IMU over it would
+        only grow the covariance past what a double can update (the filter would refuse every odometry
+        message after it), and the velocity it carried is no evidence after so long. Restart at ``t``
+        from the last pose with no velocity and the initial covariance; odometry that disagrees is then
+        gated, and ``odometry_reset_after`` messages restart the filter at the odometry's pose."""
+        self._restart(t, self._x[0:3].copy(), np.zeros(3), self._x[6:10].copy())
+        self.n_clock_restarts += 1
 
     def predict_imu_many(
         self, ts: FloatArray, f_B: FloatArray, w_B: FloatArray, n: int | None = None
@@ -960,11 +992,20 @@ class EgoEkf:
         if lag > self.config.max_odometry_lag:
             self.n_odometry_rejected += 1
             return False
-        if self._has_imu and -lag > FUTURE_TOLERANCE_S:
-            # newer than the IMU clock by more than the tolerance: a bad stamp, which would otherwise
-            # carry the filter ahead of every IMU sample to come
-            self.n_odometry_rejected += 1
-            return False
+        if -lag > FUTURE_TOLERANCE_S:
+            if not self._odometry_clock_jumped(t):
+                # newer than the filter's clock by more than the tolerance: a bad stamp, which would
+                # otherwise carry the filter ahead of every IMU sample or message to come
+                self.n_odometry_rejected += 1
+                return False
+        elif self._odometry_run.times:
+            self._odometry_run.clear()
+        if lag < -MAX_HORIZON_S:  # a believed jump of the clock, before any IMU sample: nothing to hold
+            self._restart(
+                t, self._z[0:3].copy(), self._z[7:10].copy() if m == 9 else np.zeros(3), self._z[3:7]
+            )
+            self.n_clock_restarts += 1
+            return True
         if lag < 0.0:
             self._hold_to(t)
         elif lag > 0.0:
@@ -1031,16 +1072,26 @@ class EgoEkf:
                 f"{MAX_SPEED_MPS:g} m/s at t={t}"
             )
 
+    def _odometry_clock_jumped(self, t: float) -> bool:
+        """Whether a message more than ``FUTURE_TOLERANCE_S`` after the filter's clock is believed: never
+        once the filter has propagated (an IMU sample, or a message's held one: its clock is then the
+        IMU's), else once ``ODOMETRY_RUN`` such messages in a row are in order among themselves
+        (:class:`~.guards.StampRun`: the clock :meth:`initialize` was given was wrong)."""
+        if self._has_imu or not self._odometry_run.add(t):
+            return False
+        self._odometry_run.clear()
+        return True
+
     def _hold_to(self, t: float) -> None:
         """Propagate to a message newer than the filter with the last IMU sample held, or without an
         IMU yet with the velocity held (the sample an unaccelerated body would give)."""
         if self._has_imu:
-            self.predict_imu(t, self._imu[0:3].copy(), self._imu[3:6].copy())
+            self._apply_imu(t, t - self._t, self._imu[0:3].copy(), self._imu[3:6].copy())
         else:
             R = np.empty((3, 3))
             quat_to_R(self._x[6:10], R)
             f = R.T @ np.array([0.0, 0.0, self.config.gravity]) + self._x[10:13]
-            self.predict_imu(t, f, self._x[13:16].copy())
+            self._apply_imu(t, t - self._t, f, self._x[13:16].copy())
 
     def _gated(self, Rm: FloatArray) -> bool:
         """The position gate on ``self._z`` (module config); True when the message is refused. After
@@ -1078,12 +1129,12 @@ class EgoEkf:
         counters and ``reset_delta_p_WB``), which ``initialize`` would zero."""
         kept = (
             self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
-            self.n_odometry_resets, self.n_relocalizations, self.reset_delta_p_WB,
+            self.n_odometry_resets, self.n_relocalizations, self.reset_delta_p_WB, self.n_clock_restarts,
         )  # fmt: skip
         self.initialize(t, p_WB, v_WB, q_WB)
         (
             self.n_odometry_updates, self.n_odometry_rejected, self.n_odometry_gated,
-            self.n_odometry_resets, self.n_relocalizations, self.reset_delta_p_WB,
+            self.n_odometry_resets, self.n_relocalizations, self.reset_delta_p_WB, self.n_clock_restarts,
         ) = kept  # fmt: skip
 
     def relocalize(
@@ -1093,26 +1144,25 @@ class EgoEkf:
         ``reset_counter`` went up): restart at its new pose at once, instead of refusing it as an outlier,
         and add the jump (the new position minus the estimate, propagated to ``t``) to
         ``reset_delta_p_WB``. Raises like :meth:`update_odometry` on a message that is not a pose."""
-        t = check_clock(t, self._t, "EgoEkf.relocalize")  # guards: within the tolerance of the IMU clock
-        check_real_inputs(t, (p_WB, q_WB, v_WB), "EgoEkf.relocalize")
-        try:
-            p = np.asarray(p_WB, dtype=np.float64)
-            q = np.asarray(q_WB, dtype=np.float64)
-            v = plausible_velocity(self._x[3:6]) if v_WB is None else np.asarray(v_WB, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise MeasurementError("EgoEkf.relocalize: p_WB, q_WB and v_WB must be real arrays") from None
-        if not (p.shape == (3,) and q.shape == (4,) and v.shape == (3,)):
-            raise MeasurementError("EgoEkf.relocalize: p_WB (3,), q_WB (4,) and v_WB (3,) expected")
-        if not (np.isfinite(p).all() and np.isfinite(q).all() and np.isfinite(v).all()):
-            raise EstimationError(f"EgoEkf.relocalize: non-finite pose at t={t}")
+        where = "EgoEkf.relocalize"
+        t = check_clock(t, self._t, where)  # guards: within the tolerance of the IMU clock
+        check_real_inputs(t, (p_WB, q_WB, v_WB), where)
+        # guards.check_vector: the bounds tested on the largest element first (1e300 would overflow q @ q)
+        p = check_vector(p_WB, 3, MAX_POSITION_M, "p_WB", where)
+        q = check_vector(q_WB, 4, 2.0, "q_WB", where)
+        v = (
+            plausible_velocity(self._x[3:6])
+            if v_WB is None
+            else check_vector(v_WB, 3, MAX_SPEED_MPS, "v_WB", where)
+        )
         nq2 = float(q @ q)
-        if not (0.25 <= nq2 <= 4.0) or float(p @ p) > MAX_POSITION_M**2 or float(v @ v) > MAX_SPEED_MPS**2:
-            raise MeasurementError(f"EgoEkf.relocalize: not a pose at t={t}")
+        if not nq2 >= 0.25:  # a rotation's quaternion has norm 1 (zero is not one)
+            raise MeasurementError(f"{where}: q_WB {q.tolist()} is not a rotation at t={t}")
         if not self._initialized:
             self.initialize(t, p, v, q)
             return
         if self._has_imu and t > self._t:  # hold the last IMU sample up to the message
-            self.predict_imu(t, self._imu[0:3].copy(), self._imu[3:6].copy())
+            self._apply_imu(t, t - self._t, self._imu[0:3].copy(), self._imu[3:6].copy())
         delta = self.reset_delta_p_WB + (p - self._x[0:3])
         self._restart(max(t, self._t), p, v, q / math.sqrt(nq2))
         self.n_relocalizations += 1

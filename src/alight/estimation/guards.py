@@ -81,6 +81,22 @@ def check_vector(v: Any, n: int, bound: float, what: str, where: str) -> FloatAr
     return a
 
 
+def check_rotation(R: Any, what: str, where: str) -> FloatArray:
+    """``R`` as a float (3, 3) array; :class:`MeasurementError` unless a rotation matrix: real, finite,
+    orthonormal to 1e-6 and with determinant +1 (the entries' bound first, so that 1e300 cannot overflow
+    ``R^T R``)."""
+    a = as_real_array(R, what, where)
+    if a.shape != (3, 3):
+        raise MeasurementError(f"{where}: {what} must have shape (3, 3), got {a.shape}")
+    if not (
+        float(np.abs(a).max()) <= 1.0 + 1e-6  # a rotation's entries are within [-1, 1]; False on NaN
+        and float(np.abs(a.T @ a - np.eye(3)).max()) <= 1e-6
+        and float(np.linalg.det(a)) > 0.0
+    ):
+        raise MeasurementError(f"{where}: {what} is not a rotation matrix")
+    return a
+
+
 def check_covariance(c: Any, n: int, where: str, what: str = "covariance") -> FloatArray:
     """``c`` as a float (n, n) array; :class:`MeasurementError` unless finite, symmetric (to 1e-9
     relative), positive semi-definite and with variances at most :data:`MAX_VARIANCE`."""
@@ -215,6 +231,7 @@ __all__ = [
     "check_covariance",
     "check_measurement",
     "check_real_inputs",
+    "check_rotation",
     "check_time",
     "check_times",
     "check_vector",

@@ -81,17 +81,21 @@ from scipy.special import chdtri
 from alight.cameras import CameraModel
 from alight.cameras.omni import OmniCamera, project_exact_point, project_exact_work
 from alight.cameras.pinhole import CameraMount, camera_pose_W
-from alight.errors import ConfigError, EstimationError
+from alight.errors import ConfigError, EstimationError, MeasurementError
 from alight.estimation.guards import (
     FUTURE_TOLERANCE_S,
     MAX_HORIZON_S,
+    MAX_POSITION_M,
+    MAX_SPEED_MPS,
     MAX_TIME_S,
     StampRun,
     as_real_array,
     as_time,
     check_measurement,
+    check_rotation,
     check_time,
     check_times,
+    check_vector,
 )
 from alight.estimation.sigma_points import (
     CubatureSigmaPoints,
@@ -521,16 +525,34 @@ class EgoPose(Protocol):
 
 def camera_state_W(ego: EgoPose, mount: CameraMount) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``p_WC`` (3,), ``R_WC`` (3, 3) and ``v_WC`` (3,) from an ego state; with an :class:`EgoState`, the
-    lever arm's velocity ``R_WB (w x p_BC)`` is added."""
-    p_WB = np.asarray(ego.p_WB, dtype=np.float64)
-    R_WB = np.asarray(ego.R_WB, dtype=np.float64)
-    v_WB = np.asarray(ego.v_WB, dtype=np.float64)
+    lever arm's velocity ``R_WB (w x p_BC)`` is added. An ego state that is not one (a missing field, a
+    wrong shape, not finite, beyond the bounds of :mod:`alight.estimation.guards`, ``R_WB`` not a rotation)
+    raises :class:`~alight.errors.MeasurementError`."""
+    where = "KimUkf: ego state"
+    try:
+        p_in, R_in, v_in = ego.p_WB, ego.R_WB, ego.v_WB
+    except AttributeError:
+        raise MeasurementError(f"{where}: p_WB, R_WB and v_WB are needed, got {type(ego).__name__}") from None
+    p_WB = check_vector(p_in, 3, MAX_POSITION_M, "p_WB", where)
+    R_WB = check_rotation(R_in, "R_WB", where)
+    v_WB = check_vector(v_in, 3, MAX_SPEED_MPS, "v_WB", where)
     p_WC, R_WC = camera_pose_W(p_WB, R_WB, mount)
     w = ego.w_WB_B if isinstance(ego, EgoState) else None
     v_WC = v_WB if w is None else v_WB + R_WB @ np.cross(np.asarray(w, dtype=np.float64), mount.p_BC)
     if not (np.isfinite(p_WC).all() and np.isfinite(R_WC).all() and np.isfinite(v_WC).all()):
-        raise EstimationError("KimUkf: non-finite ego state")
+        raise MeasurementError(f"{where}: not finite")
     return p_WC, R_WC, v_WC
+
+
+def _check_n_sigma(n_sigma: Any) -> float:
+    """``n_sigma`` of :meth:`KimUkf.predict_pixel` as a float in (0, 100]; :class:`MeasurementError` else."""
+    try:
+        value = math.nan if isinstance(n_sigma, (str, bytes)) else float(n_sigma)
+    except (TypeError, ValueError):  # None, complex, an array
+        value = math.nan
+    if not 0.0 < value <= 100.0:  # also NaN
+        raise MeasurementError(f"KimUkf.predict_pixel: n_sigma must be in (0, 100], got {n_sigma!r}")
+    return value
 
 
 class KimUkf:
@@ -776,7 +798,8 @@ class KimUkf:
         time (``p_WB``, ``v_WB``, ``q_WB``/``R_WB``, optional ``w_WB_B``; e.g. an
         :class:`~alight.types.EgoState`). True when used; a non-finite pixel, a camera at or below the
         deck, a sigma point without an image or a gated innovation return False and leave the state
-        unchanged."""
+        unchanged; an ego state that is not one raises :class:`~alight.errors.MeasurementError`
+        (:func:`camera_state_W`)."""
         self._require_camera()
         t = as_time(t, "KimUkf.update_pixel")  # guards: not finite is counted below, not a number refused
         z = as_real_array(px, "px", "KimUkf.update_pixel").ravel()
@@ -928,8 +951,11 @@ class KimUkf:
         ``n_sigma`` times the square root of the innovation covariance's largest eigenvalue. For the
         detector's gating (:meth:`alight.perception.color_filter.RedTargetDetector.set_prediction`). None
         before the first measurement, when the target has no image or when the track is older than
-        ``MAX_HORIZON_S`` at ``t`` (:mod:`alight.estimation.guards`; a time that is not one is refused)."""
+        ``MAX_HORIZON_S`` at ``t`` (:mod:`alight.estimation.guards`; a time that is not one, an ego state
+        that is not one and an ``n_sigma`` outside (0, 100] raise :class:`~alight.errors.MeasurementError`).
+        """
         t = check_time(t, "KimUkf.predict_pixel")
+        n_sigma = _check_n_sigma(n_sigma)
         if not self._has or self.camera is None or not (0.0 <= t - self._t <= MAX_HORIZON_S):
             return None
         p_WC, R_WC, v_WC = camera_state_W(ego, self.mount)
