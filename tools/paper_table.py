@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections import Counter, defaultdict
 from pathlib import Path
@@ -26,6 +27,10 @@ from typing import Any
 
 from alight.campaign import wilson95
 from alight.campaign.report import Mission, read_results
+from alight.sim.wind import GustWind
+
+GUST_DIRECTION_XY = GustWind.DIRECTION
+"""Paper 004's fixed gust direction (x_norm, y_norm); the force is minus this times the power."""
 
 TARGET_RATE = 0.95
 """Issue 41's bar: a reproduction lands at least this often in its paper's conditions."""
@@ -59,13 +64,45 @@ def paper_figure(preset: str, scenario: dict[str, Any]) -> str:
     return "-"
 
 
+def circle_centre_xy(platform: dict[str, Any]) -> tuple[float, float] | None:
+    """The centre (m, W) of a circle path: its radius to the left of the start heading (the platform
+    model's circle turns left), or None when the scenario does not say where the circle starts."""
+    start, heading = platform.get("start_xy"), platform.get("heading_rad")
+    if start is None or heading is None:
+        return None
+    r = float(platform.get("circle_radius_m", 10.0))
+    return float(start[0]) - r * math.sin(float(heading)), float(start[1]) + r * math.cos(float(heading))
+
+
+def angle_off_upwind_rad(heading_rad: float) -> float:
+    """How far (rad, in [0, pi]) a heading is from driving straight into paper 004's gust: the gust
+    force is ``-(0.8, 0.2) power``, so the wind comes from the direction of (0.8, 0.2)."""
+    from_rad = math.atan2(GUST_DIRECTION_XY[1], GUST_DIRECTION_XY[0])
+    return abs(math.remainder(heading_rad - from_rad, 2.0 * math.pi))
+
+
+def _wind_part(platform: dict[str, Any], wind: dict[str, Any]) -> str:
+    heading = platform.get("heading_rad")
+    text = f"gusts {_num(wind.get('gust_power_N'))} N"
+    if platform.get("path") != "straight" or heading is None:
+        return text
+    off = angle_off_upwind_rad(float(heading))
+    way = "upwind" if off < math.pi / 4 else "downwind" if off > 3 * math.pi / 4 else "across the wind"
+    heading_deg, off_deg = math.degrees(float(heading)), math.degrees(off)
+    return f"{text}, heading {heading_deg:.0f} deg ({way}, {off_deg:.0f} deg off upwind)"
+
+
 def cell_label(scenario: dict[str, Any]) -> str:
-    """A short name of a mission's condition: path, speed, wind, and the search area when not the default."""
+    """A short name of a mission's condition: path, speed, a circle's centre, the wind (in gusts, the
+    straight line's heading to them), and the search area when not the default."""
     platform, wind = scenario.get("platform", {}), scenario.get("wind", {})
     area = scenario.get("search_area", {})
     parts = [f"{platform.get('path', '?')} {_num(platform.get('speed_mps'))} m/s"]
+    centre = circle_centre_xy(platform) if platform.get("path") == "circle" else None
+    if centre is not None:
+        parts.append(f"centre ({_num(round(centre[0], 1) + 0.0)}, {_num(round(centre[1], 1) + 0.0)}) m")
     if wind.get("model") == "gust":
-        parts.append(f"gusts {_num(wind.get('gust_power_N'))} N")
+        parts.append(_wind_part(platform, wind))
     elif wind.get("model") not in (None, "none"):
         parts.append(f"wind {wind.get('model')}")
     bounds = tuple(area.get(k) for k in ("x_min", "x_max", "y_min", "y_max"))
