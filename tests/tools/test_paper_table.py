@@ -86,6 +86,11 @@ def test_rendered_table_marks_the_bar_and_writes_the_file(tmp_path: Path) -> Non
     assert "| `falanga2017` | straight 4.2 m/s, area 40 x 524 m | 17/20 | 85 % | 64-95 % | **no** |" in text
     assert "| 20/20 | 100 % | 84-100 % | yes |" in text
     assert "campaign seed 41, " in text
+    assert "--note" not in text
+    assert tool.main([str(run), "--note", "Measured: why.", "--out", str(out)]) == 0
+    text = out.read_text(encoding="utf-8")
+    assert "--note TEXT ...  (one per paragraph after this introduction)" in text
+    assert "\n\nMeasured: why.\n\n## " in text
 
 
 def test_bad_arguments_are_refused_with_a_message(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
