@@ -171,7 +171,8 @@ def _campaign_line(run_dir: Path) -> str:
     lock = json.loads(lock_path.read_text(encoding="utf-8")) if lock_path.is_file() else {}
     name, seed = lock.get("campaign", run_dir.name), lock.get("campaign_seed", "?")
     n = lock.get("seeds_per_condition", "?")
-    return f"Campaign `{name}`, campaign seed {seed}, {n} seeds per cell (output directory `{run_dir.name}`)."
+    seeds = "1 seed" if n == 1 else f"{n} seeds"
+    return f"Campaign `{name}`, campaign seed {seed}, {seeds} per cell (output directory `{run_dir.name}`)."
 
 
 def format_row(row: dict[str, Any]) -> str:
