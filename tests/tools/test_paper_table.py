@@ -86,6 +86,11 @@ def test_rendered_table_marks_the_bar_and_writes_the_file(tmp_path: Path) -> Non
     assert "| `falanga2017` | straight 4.2 m/s, area 40 x 524 m | 17/20 | 85 % | 64-95 % | **no** |" in text
     assert "| 20/20 | 100 % | 84-100 % | yes |" in text
     assert "campaign seed 41, " in text
+    assert "--note" not in text
+    assert tool.main([str(run), "--note", "Measured: why.", "--out", str(out)]) == 0
+    text = out.read_text(encoding="utf-8")
+    assert "--note TEXT ...  (one per paragraph after this introduction)" in text
+    assert "\n\nMeasured: why.\n\n## " in text
 
 
 def test_bad_arguments_are_refused_with_a_message(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -93,3 +98,21 @@ def test_bad_arguments_are_refused_with_a_message(tmp_path: Path, capsys: pytest
     assert tool.main([]) == 2
     assert tool.main([str(tmp_path)]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_labels_name_a_circle_centre_and_the_heading_to_the_gust() -> None:
+    tool = _tool()
+    circle = {"platform": {"path": "circle", "speed_mps": 4.2, "start_xy": [10.0, 0.0], "heading_rad": 0.0,
+                           "circle_radius_m": 10.0}}  # fmt: skip
+    assert tool.cell_label(circle) == "circle 4.2 m/s, centre (10, 10) m"
+    # the model's default circle (start (10, 0) heading +y) is centred on the take-off point
+    circle["platform"]["heading_rad"] = math.pi / 2
+    assert tool.cell_label(circle) == "circle 4.2 m/s, centre (0, 0) m"
+    # paper 004's force is -(0.8, 0.2) power: the wind comes from atan2(0.2, 0.8) = 14.04 deg
+    from_deg = math.degrees(math.atan2(0.2, 0.8))
+    for heading_deg, way, off_deg in ((0, "upwind", from_deg), (90, "across the wind", 90 - from_deg),
+                                      (180, "downwind", 180 - from_deg)):  # fmt: skip
+        s = _scenario(1.5, "gust")
+        s["platform"]["heading_rad"] = math.radians(heading_deg)  # type: ignore[index]
+        wind = f"gusts 7.76 N, heading {heading_deg} deg ({way}, {off_deg:.0f} deg off upwind)"
+        assert tool.cell_label(s) == f"straight 1.5 m/s, {wind}, area 40 x 524 m"
