@@ -367,12 +367,12 @@ def actuator_reply(msg: Any) -> tuple[int, FloatArray, bool] | None:
     return int(msg.time_usec), controls, bool(int(msg.mode) & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
 
 
-FRAME_HOLD_S = 0.3
-"""A frame goes to the companion no sooner than this after its capture (sim s). The companion stamps
-time with PX4's telemetry (UDP, its own backlog on a loaded machine), which can trail the world by a
-stream period and more, and the bridge refuses a frame stamped after its clock: measured on 2 shared
-cores at 0.8x real time, 28 % of the frames were refused with 0.03 s. The pipeline fuses each frame at
-its capture time, so the hold costs latency, not consistency."""
+FRAME_HOLD_S = 0.03
+"""A frame goes to the companion no sooner than this after its capture (sim s): the companion stamps
+time with PX4's telemetry, which reaches it a stream period behind the world, and the bridge refuses a
+frame stamped after its clock. Measured with real PX4 on 2 shared cores: the bridge still refused 28 %
+of the frames at 0.03 s and 22 % at 0.3 s, so the companion's lag is not the whole cause (docs/px4.md,
+open)."""
 _TRUTH_KEYS = ("t", "p_WB", "v_WB", "p_WP", "v_WP", "w_WB_B", "f_wind_W", "motor_N")
 
 
