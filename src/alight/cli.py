@@ -1,7 +1,7 @@
 """The ``alight`` command.
 
     alight fly SCENARIO.yaml --out DIR [--seed N] [--replay] [--mcap] [--bag PATH [--bag-storage S]]
-               [--print-config] [--no-warmup]
+               [--print-config] [--no-warmup] [--autopilot sim|px4 [--px4 DIR] [--px4-mode M] [--px4-speed X]]
     alight blocks
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
@@ -47,6 +47,12 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     if args.out is None:
         raise AlightError("--out DIR is required (unless --print-config)")
     out = Path(args.out)
+    if args.autopilot == "px4":
+        from alight.interfaces.px4_run import fly_px4_command
+
+        if not args.no_warmup:
+            _warm_up_before_the_clock(scenario)
+        return fly_px4_command(scenario, out, args)
     exports = _fly_exports(args, scenario, out)
     if not args.no_warmup:
         _warm_up_before_the_clock(scenario)
@@ -330,6 +336,14 @@ def _fly_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="skip the warm-up flight that compiles numba's kernels before the mission's clock starts",
     )
+    p.add_argument(
+        "--autopilot", choices=("sim", "px4"), default="sim", help="sim: alight's own; px4: PX4 SITL"
+    )
+    p.add_argument(
+        "--px4", default=None, metavar="DIR", help="PX4 SITL build (bin/px4); else $ALIGHT_PX4_DIR"
+    )
+    p.add_argument("--px4-mode", choices=("offboard", "landing-target"), default="offboard")
+    p.add_argument("--px4-speed", type=float, default=1.0, help="sim s per wall s at most (0: free-running)")
 
 
 def _detect_arguments(p: argparse.ArgumentParser) -> None:

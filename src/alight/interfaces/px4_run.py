@@ -1,0 +1,252 @@
+"""``alight fly SCENARIO --autopilot px4 --px4 DIR``: a mission with the user's PX4 SITL build as autopilot.
+
+Three processes meet on loopback:
+
+1. **the world** (:class:`alight.interfaces.px4_sim.Px4Simulator`, in a child process): listens on TCP
+   ``4560 + instance`` for PX4 and on a free TCP port for the companion's camera stream;
+2. **PX4** (``DIR/bin/px4 -d -i INSTANCE -w WORKDIR DIR/etc``, with ``PX4_SIM_MODEL`` and the airframe's
+   parameters of :func:`alight.interfaces.px4_airframe.px4_environment`): the unmodified flight stack,
+   its clock driven by the world's sensor messages (lockstep);
+3. **the companion** (this process): the pipeline through the MAVLink bridge
+   (:func:`alight.interfaces.bridge_run.run_bridge`) on PX4's offboard link (PX4 sends to UDP
+   ``14540 + instance``), which writes ``result.json``, the log and the report as ``alight fly`` does,
+   with the world's verdict and ground truth.
+
+PX4 binds fixed ports shifted by its instance number (TCP 4560 as a client; UDP 14540, 14550, 14580,
+18570, 14280, 13030, 14030, 13280 + instance): the first instance whose ports are all free is taken, so
+several missions (a campaign's workers) can fly side by side. PX4's working directory (parameters, ULog
+logs) and console output are kept in ``OUT/px4/``.
+
+A PX4 that does not start, stops answering or exits ends the mission as ``error`` with its reason (the
+world's bounded waits, :class:`~alight.interfaces.px4_sim.Px4SimConfig`); PX4 is stopped by its process
+id (SIGINT, then SIGKILL) whatever happens.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import socket
+import subprocess
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any, Literal
+
+from alight.errors import ConfigError
+from alight.evaluation.mission_io import write_result
+from alight.interfaces.bridge_run import run_bridge
+from alight.interfaces.mavlink_bridge import BridgeConfig
+from alight.interfaces.px4_airframe import px4_airframe_for, px4_environment, px4_parameters
+from alight.interfaces.px4_sim import SIM_PORT_BASE, Px4SimConfig, Px4Simulator
+from alight.scenario import Scenario
+
+PX4_DIR_ENV = "ALIGHT_PX4_DIR"
+PX4_UDP_PORTS = (14540, 14550, 14580, 18570, 14280, 13030, 14030, 13280)
+"""The UDP ports PX4 SITL instance 0 uses (its MAVLink links and their peers); instance i adds i."""
+MAX_INSTANCES = 100
+SIMULATOR_READY_S = 120.0
+"""The world's process must be listening within this (wall s): building the world loads its kernels."""
+
+
+@dataclass(frozen=True)
+class Px4Build:
+    """A PX4-Autopilot SITL build directory: ``bin/px4`` and the ``etc`` start-up files beside it."""
+
+    root: Path
+
+    @property
+    def binary(self) -> Path:
+        return self.root / "bin" / "px4"
+
+    @property
+    def etc(self) -> Path:
+        return self.root / "etc"
+
+
+def find_px4_build(path: str | None) -> Px4Build:
+    """The build at ``path`` (else ``$ALIGHT_PX4_DIR``): a build directory with ``bin/px4`` (e.g.
+    ``PX4-Autopilot/build/px4_sitl_default``), or a PX4-Autopilot checkout with one ``build/px4_sitl*``."""
+    raw = path or os.environ.get(PX4_DIR_ENV)
+    if not raw:
+        raise ConfigError(
+            f"px4: give --px4 DIR (a PX4 SITL build with bin/px4) or set {PX4_DIR_ENV} (docs/px4.md)"
+        )
+    base = Path(raw).expanduser()
+    candidates = [base, *sorted(base.glob("build/px4_sitl*"))]
+    for cand in candidates:
+        build = Px4Build(cand)
+        if (
+            build.binary.is_file()
+            and os.access(build.binary, os.X_OK)
+            and (build.etc / "init.d-posix").is_dir()
+        ):
+            return build
+    raise ConfigError(f"px4: {base} has no PX4 SITL build (bin/px4 and etc/init.d-posix); see docs/px4.md")
+
+
+def _port_free(kind: int, port: int) -> bool:
+    with socket.socket(socket.AF_INET, kind) as s:
+        try:
+            s.bind(("0.0.0.0", port))  # PX4 binds every address
+        except OSError:
+            return False
+    return True
+
+
+def free_instance(first: int = 0) -> int:
+    """The first PX4 instance number from ``first`` on whose ports are all free."""
+    for i in range(first, first + MAX_INSTANCES):
+        if _port_free(socket.SOCK_STREAM, SIM_PORT_BASE + i) and all(
+            _port_free(socket.SOCK_DGRAM, p + i) for p in PX4_UDP_PORTS
+        ):
+            return i
+    raise ConfigError(f"px4: no free PX4 instance among {first}..{first + MAX_INSTANCES - 1} (ports in use)")
+
+
+def free_tcp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _serve(scenario_json: dict[str, Any], config: Px4SimConfig, ready: Any, linger_s: float) -> None:
+    """The world's process: listen, tell the parent, fly, send the verdict, linger, close."""
+    sim = Px4Simulator(Scenario.model_validate(scenario_json), config)
+    ready.set()
+    try:
+        result = sim.run()
+        sim.send_outcome(result)
+        end = time.monotonic() + linger_s
+        while time.monotonic() < end and sim.frames.connected:
+            sim.link.receive(0.05)  # keep PX4 frozen but connected while the companion reads the verdict
+    finally:
+        sim.close()
+
+
+def start_px4(
+    build: Px4Build, instance: int, workdir: Path, env_extra: dict[str, str]
+) -> subprocess.Popen[bytes]:
+    """PX4 SITL as a daemon (``-d``: no shell) in ``workdir``, its console into ``workdir/px4.log``."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PX4_SIMULATOR", "PX4_SYS_AUTOSTART"))}
+    env.update(env_extra)
+    log = (workdir / "px4.log").open("wb")
+    cmd = [str(build.binary), "-d", "-i", str(instance), "-w", str(workdir), str(build.etc)]
+    try:
+        return subprocess.Popen(
+            cmd, cwd=workdir, env=env, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )  # fmt: skip
+    except OSError as err:
+        raise ConfigError(f"px4: cannot start {build.binary} ({err.strerror})") from None
+    finally:
+        log.close()
+
+
+def stop_process(proc: subprocess.Popen[bytes], grace_s: float = 5.0) -> int | None:
+    """Stop ``proc`` (SIGINT, then SIGKILL after ``grace_s``); its exit code."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(grace_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(grace_s)
+    return proc.returncode
+
+
+@dataclass(frozen=True, kw_only=True)
+class Px4FlyConfig:
+    """How ``alight fly --autopilot px4`` flies."""
+
+    mode: Literal["offboard", "landing-target"] = "offboard"
+    setpoint: Literal["rates", "position"] = "position"
+    """``position``: PX4's own position and attitude controllers fly the pipeline's reference."""
+    speed: float = 1.0
+    """Simulated seconds per wall second at most (0: as fast as it goes; PX4's timeouts count sim time,
+    the companion's heartbeat wall time)."""
+    instance: int | None = None
+    """PX4's instance number (None: the first free one)."""
+    connect_timeout_s: float = 60.0
+    """PX4 must connect to the world within this (wall s) after it is started."""
+
+
+def fly_px4(scenario: Scenario, out: str | Path, px4_dir: str | None, config: Px4FlyConfig) -> dict[str, Any]:
+    """Fly ``scenario`` with the PX4 SITL build at ``px4_dir`` (module docstring); writes ``out`` as
+    ``alight fly`` does and returns the result (with a ``px4`` record: build, instance, airframe
+    mapping, PX4's exit code)."""
+    from alight.airframes import load_airframe
+
+    build = find_px4_build(px4_dir)
+    px4_frame = px4_airframe_for(scenario.airframe)
+    airframe = load_airframe(scenario.airframe)
+    out = Path(out)
+    instance = free_instance() if config.instance is None else config.instance
+    sim_config = Px4SimConfig(
+        instance=instance, camera_port=free_tcp_port(), speed=config.speed,
+        connect_timeout_s=config.connect_timeout_s,
+    )  # fmt: skip
+    env = px4_environment(airframe)
+    if config.speed > 0 and config.speed != 1.0:
+        env["PX4_SIM_SPEED_FACTOR"] = f"{config.speed:g}"  # rcS scales PX4's link-loss timeouts by it
+    ctx = multiprocessing.get_context("spawn")
+    ready = ctx.Event()
+    world = ctx.Process(target=_serve, args=(scenario.model_dump(mode="json"), sim_config, ready, 10.0))
+    world.start()
+    px4: subprocess.Popen[bytes] | None = None
+    try:
+        if not ready.wait(SIMULATOR_READY_S):
+            raise ConfigError(f"px4: the world's process was not listening within {SIMULATOR_READY_S:g} s")
+        px4 = start_px4(build, instance, out / "px4", env)
+        bridge = BridgeConfig(mode=config.mode, autopilot="px4", setpoint=config.setpoint, arm=True)
+        result = run_bridge(
+            f"udpin:127.0.0.1:{PX4_UDP_PORTS[0] + instance}", out, bridge,
+            camera=f"tcp:127.0.0.1:{sim_config.camera_port}", max_wall_s=_max_wall_s(scenario, config),
+        )  # fmt: skip
+    finally:
+        code = None if px4 is None else stop_process(px4)
+        world.join(15.0)
+        if world.is_alive():
+            world.terminate()
+            world.join(5.0)
+    result["px4"] = {
+        "build": str(build.root), "instance": instance, "exit_code": code,
+        "airframe": {"alight": scenario.airframe, **asdict(px4_frame)},
+        "parameters": px4_parameters(airframe), "config": asdict(replace(config, instance=instance)),
+        "console_log": str(out / "px4" / "px4.log"),
+    }  # fmt: skip
+    write_result(out, result)
+    return result
+
+
+def _max_wall_s(scenario: Scenario, config: Px4FlyConfig) -> float:
+    """The companion's wall-clock bound: the mission at the slower of its speed and 1/5 of real time,
+    plus the start-up, so that nothing keeps a campaign waiting for ever."""
+    speed = config.speed if config.speed > 0 else 1.0
+    return scenario.duration_s / min(speed, 1.0) * 5.0 + 600.0
+
+
+def fly_px4_command(scenario: Scenario, out: Path, args: Any) -> int:
+    """``alight fly --autopilot px4``: fly, print one line, return the exit status. ``args``: the
+    command's parsed arguments (``px4``, ``px4_mode``, ``px4_speed``; ``replay``, ``mcap`` and ``bag``
+    are refused: those outputs are written for alight's own simulator only)."""
+    if args.replay or args.mcap or args.bag:
+        raise ConfigError("px4: --replay, --mcap and --bag are written for --autopilot sim only")
+    if not (args.px4_speed >= 0.0 and args.px4_speed < 1e3):
+        raise ConfigError(f"px4: --px4-speed must be in [0, 1000), got {args.px4_speed}")
+    config = Px4FlyConfig(mode=args.px4_mode, speed=args.px4_speed)
+    r = fly_px4(scenario, out, args.px4, config)
+    err = r.get("touchdown_error_m")
+    err_txt = "-" if err is None else f"{err:.3f} m"
+    lockstep: dict[str, Any] = next(
+        (e for e in (r.get("sitl") or {}).get("events") or [] if e.get("kind") == "px4_lockstep"), {}
+    )
+    print(
+        f"px4 {r['preset']} seed {r['seed']} ({config.mode}): {r['outcome']}"
+        f"{' (' + str(r.get('outcome_reason')) + ')' if r['outcome'] == 'error' else ''}, touchdown error"
+        f" {err_txt}, {lockstep.get('sim_s', 0.0):.1f} s simulated at {lockstep.get('sim_s_per_wall_s')} x"
+        f" real time -> {out / 'report.html'}"
+    )
+    return 0
