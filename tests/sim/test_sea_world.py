@@ -185,6 +185,22 @@ def test_the_deck_motion_is_carried_through_the_contact():
     assert roll == pytest.approx(math.radians(5.0) + 0.1 * 1.5, abs=1e-6)  # Exp(w t) carried the deck
 
 
+def test_a_vehicle_slides_off_a_steep_deck_into_the_sea_and_is_judged_so():
+    # motors off on a small deck rolled 40 deg (beyond the friction cone): it slides off the low edge,
+    # falls to the sea's level and the settled judge calls it crashed
+    deck = _tilted_deck(math.radians(40.0), half=1.0)
+    xs, ds = _fly(_resting_on(deck), 2.5, deck)
+    x, d = xs[-1], ds[-1]
+    _, counts = _wrench(x, d)
+    assert counts[0] == 0 and counts[1] > 0 and x[Q.IX_P + 2] < AF.gear_height + 0.3
+    R = d[Q.DK_R : Q.DK_R + 9].reshape(3, 3)
+    pose = DeckPose(d[Q.DK_P : Q.DK_P + 3], R, d[Q.DK_V : Q.DK_V + 3], np.zeros(3), (-1.0, 1.0, -1.0, 1.0))
+    outcome, reason = judge_settled_on_deck(
+        x[Q.SL_P], quat_to_rotmat(x[Q.SL_Q]), pose, 1.5, ContactLimits(), int(counts[0]), int(counts[1])
+    )
+    assert outcome is Outcome.CRASHED and "ground" in reason and "not_on_pad" in reason
+
+
 def test_a_level_deck_row_is_the_flat_world_contact():
     # the tilted branch is only taken on a tilted deck: a level deck's row leaves the flat world's
     # arithmetic alone, and a tilted deck at zero tilt gives the same forces to rounding
