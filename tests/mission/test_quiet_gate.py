@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from alight.errors import ConfigError
 from alight.estimation.deck_estimator import DeckPrediction
 from alight.mission.blocks import check_compatibility, resolve_blocks
 from alight.mission.quiet_window import (
@@ -185,3 +186,11 @@ def test_the_level_pad_geolocators_are_refused_on_a_deck_in_one_line(preset: str
     # PnP measures the pad's pose, tilt included: it flies on a deck
     alight = resolve_blocks(scenario_from_dict({"preset": "alight"}), load_camera=False)
     check_compatibility(alight.blocks, source, color=alight.color, level_pad=False)
+
+
+def test_a_sea_scenario_refuses_the_level_pad_geolocators_when_loaded() -> None:
+    sea = {"sea_state": 3, "vessel": "patrol_boat"}
+    for preset, geolocator in (("kim_kaist", "flat_earth"), ("zamanakos_sdu", "homography")):
+        with pytest.raises(ConfigError, match=f"blocks.geolocator: geolocator '{geolocator}' assumes"):
+            scenario_from_dict({"preset": preset, "platform": {"sea": sea}})
+    resolve_blocks(scenario_from_dict({"preset": "alight", "platform": {"sea": sea}}), load_camera=False)

@@ -293,7 +293,7 @@ def resolve_blocks(scenario: Any, *, load_camera: bool = True, fresh_camera: boo
             camera_model = _load_camera(block, where, fresh_camera)
     color_needed = any(b.spec.needs.get("camera.color") == (True,) for b in chosen.values())
     color = color_needed if scenario.camera.color is None else bool(scenario.camera.color)
-    check_compatibility(chosen, ch.source, color=color)
+    check_compatibility(chosen, ch.source, color=color, level_pad=scenario.platform.sea is None)
     if load_camera:
         # a geolocator validates its parameters in its constructor (cheap): run it now, not in flight
         g = chosen["geolocator"]

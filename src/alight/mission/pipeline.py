@@ -52,6 +52,9 @@ if TYPE_CHECKING:  # the Protocols, for annotations only
     from alight.perception import Detector, Geolocator
 
 _ZERO3 = np.zeros(3)
+MRU_VARIANCE_FLOOR = 1e-10
+"""Added to a motion reference unit's covariance (rad^2, (m/s)^2: 0.0006 deg, 1e-5 m/s): a simulated MRU
+without noise has a zero covariance, which no filter can fuse."""
 FINAL_DESCENT_PHASES = ("descend", "done")
 """The final action's phases that descend to a touchdown: the land detector runs, and touching the ground
 is the descent's end."""
@@ -379,14 +382,24 @@ class Pipeline:
         return used
 
     def on_deck_motion(
-        self, t_stamp: float, roll_pitch: FloatArray, heave_rate: float, cov: FloatArray
+        self,
+        t_stamp: float,
+        roll_pitch: FloatArray,
+        cov_roll_pitch: FloatArray,
+        heave_rate: float,
+        heave_rate_var: float,
     ) -> bool:
         """The vessel's motion reference unit sample taken at ``t_stamp`` and arriving now: the deck's
-        (roll, pitch) (2,) rad and the pad's heave rate (m/s), covariance (3, 3). The platform estimator
-        fuses it when it can (:class:`alight.estimation.deck_platform.DeckMotionFusing`); True when used."""
+        (roll, pitch) (2,) rad with covariance (2, 2), and the pad's heave rate (m/s) with its variance.
+        The platform estimator fuses it when it can
+        (:class:`alight.estimation.deck_platform.DeckMotionFusing`); True when used."""
         if not self._fuses_deck_motion:
             return False
         est = cast(DeckMotionFusing, self.platform_estimator)  # checked once, in __init__
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = cov_roll_pitch
+        cov[2, 2] = heave_rate_var
+        cov += np.eye(3) * MRU_VARIANCE_FLOOR  # a noiseless simulated MRU: still a proper covariance
         t0 = time.perf_counter()
         used = est.update_deck_motion(t_stamp, roll_pitch, heave_rate, cov)
         self.stats.charge("platform_estimator", t0)
