@@ -37,6 +37,7 @@ from pydantic import (
     ValidationError,
     ValidationInfo,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -56,6 +57,7 @@ from alight.settings import (
     refuse_bool_for_int,
     section_model,
 )
+from alight.sim.sea.config import SeaConfig
 from alight.sim.sensors import OpticalFlowConfig, RangeFinderConfig
 from alight.sim.telemetry import TelemetryConfig
 from alight.sim.textures import DistractorSpec
@@ -156,6 +158,30 @@ class PlatformSpec(_Strict):
     """Changes of speed along the path (the path's geometry stays); None: ``speed_mps`` throughout."""
     telemetry: TelemetryConfig | None = None
     """The platform broadcasts its GNSS fix to the aircraft; None (default): no telemetry."""
+    sea: SeaConfig | None = None
+    """The platform is a vessel at sea: it follows the path and its speed profile, and the sea adds heave,
+    roll, pitch, surge, sway and yaw (``docs/sea.md``); the pad's height is then the vessel's pad offset
+    above the waterline (the world's z = 0, the sea's mean level), not ``pad_height_m``. None (default):
+    a ground vehicle on level ground."""
+
+    @field_validator("sea", mode="wrap")
+    @classmethod
+    def _sea_in_one_line(cls, value: Any, handler: Any) -> Any:
+        # SeaConfig's cross-field rules raise ConfigError (one line that names the key): the scenario's
+        # message names platform.sea once, from pydantic's location
+        try:
+            return handler(value)
+        except ConfigError as err:
+            raise ValueError(str(err).removeprefix("platform.sea: ").removeprefix("platform.sea.")) from None
+
+    @model_serializer(mode="wrap")
+    def _no_sea_key_on_land(self, handler: Any) -> Any:
+        # a platform on land writes no ``sea`` key: the scenario (and result.json) of every mission
+        # without a sea stays what it was before the key existed
+        out = handler(self)
+        if self.sea is None and isinstance(out, dict):
+            out.pop("sea", None)
+        return out
 
 
 def _as_list(value: Any) -> Any:

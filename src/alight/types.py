@@ -227,6 +227,11 @@ class PlatformMeasurement:
     """Heading of the pad x axis in W (rad), when measured."""
     yaw_var: float | None = None
     """Variance of ``yaw`` (rad^2)."""
+    n_WP: FloatArray | None = None
+    """The pad's normal (its z axis) in W, a unit vector (3,), when the pose is measured (PnP): a tilted
+    deck's attitude, unambiguous for a pad symmetric under rotations about its normal."""
+    cov_n_WP: FloatArray | None = None
+    """Covariance of ``n_WP`` (3, 3), with ``n_WP``."""
 
     def __post_init__(self) -> None:
         p = _frozen(self.p_WP, (3,), "p_WP")
@@ -235,6 +240,15 @@ class PlatformMeasurement:
             raise ValueError("PlatformMeasurement must be finite")
         object.__setattr__(self, "p_WP", p)
         object.__setattr__(self, "cov_p_WP", c)
+        if (self.n_WP is None) != (self.cov_n_WP is None):
+            raise ValueError("PlatformMeasurement: n_WP and cov_n_WP come together")
+        if self.n_WP is not None and self.cov_n_WP is not None:
+            n = _frozen(self.n_WP, (3,), "n_WP")
+            cn = _frozen(self.cov_n_WP, (3, 3), "cov_n_WP")
+            if not (np.isfinite(n).all() and np.isfinite(cn).all() and abs(float(n @ n) - 1.0) < 1e-6):
+                raise ValueError("PlatformMeasurement: n_WP must be a finite unit vector, cov_n_WP finite")
+            object.__setattr__(self, "n_WP", n)
+            object.__setattr__(self, "cov_n_WP", cn)
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import test_quiet_gate as quiet_gate  # the quiet-window gate's transitions (mission/quiet_window.py)
 
 from alight.mission.state_machine import TRANSITIONS, Mission, MissionConfig
 from alight.types import EgoState, Mode, PlatformEstimate
@@ -669,6 +670,8 @@ def test_every_listed_transition_is_reachable_and_only_those_happen() -> None:
         test_final_action_hover_climbs_holds_and_completes,
         test_final_action_return_flies_home_then_lands,
         test_final_action_land_in_place_descends_at_once,
+        quiet_gate.test_the_mission_goes_around_when_the_window_closes_before_contact,
+        quiet_gate.test_the_mission_goes_around_when_no_window_comes,
     ]
     calls = [(fn, ()) for fn in scenarios]
     calls += [

@@ -469,39 +469,50 @@ class DeckEstimator:
         t: float,
         p_WP: FloatArray,
         cov_p_WP: FloatArray,
-        roll_pitch: FloatArray,
-        cov_roll_pitch: FloatArray,
+        roll_pitch: FloatArray | None,
+        cov_roll_pitch: FloatArray | None,
     ) -> bool:
         """Fuse a pad pose captured at ``t`` (s): position (3,) m in W with covariance (3, 3) m^2, deck
-        (roll, pitch) (2,) rad with covariance (2, 2). True when fused."""
+        (roll, pitch) (2,) rad with covariance (2, 2); ``roll_pitch`` None: a position without attitude
+        (the height alone is fused). True when fused."""
         where = "DeckEstimator.update_pose"
         t = check_time(t, where)
         p = check_vector(p_WP, 3, MAX_POSITION_M, "p_WP", where)
         cp = check_covariance(cov_p_WP, 3, where, "cov_p_WP")
-        a = check_vector(roll_pitch, 2, MAX_ANGLE_RAD, "roll_pitch", where)
-        ca = check_covariance(cov_roll_pitch, 2, where, "cov_roll_pitch")
-        if cp[2, 2] <= 0.0 or float(np.linalg.eigvalsh(ca).min()) <= 0.0:
-            raise MeasurementError(f"{where}: the height and attitude variances must be > 0")
+        if cp[2, 2] <= 0.0:
+            raise MeasurementError(f"{where}: the height variance must be > 0")
+        m = 1
+        a = ca = None
+        if roll_pitch is not None or cov_roll_pitch is not None:
+            a = check_vector(roll_pitch, 2, MAX_ANGLE_RAD, "roll_pitch", where)
+            ca = check_covariance(cov_roll_pitch, 2, where, "cov_roll_pitch")
+            if float(np.linalg.eigvalsh(ca).min()) <= 0.0:
+                raise MeasurementError(f"{where}: the attitude covariance must be positive definite")
+            m = 3
         if self._future(t):
             return False
-        H = np.zeros((3, self._n))
-        for ch in range(3):
+        H = np.zeros((m, self._n))
+        for ch in range(m):
             o = self._offset(ch)
             H[ch, o] = H[ch, o + 1] = 1.0
-        R = np.zeros((3, 3))
+        R = np.zeros((m, m))
         R[0, 0] = cp[2, 2]
-        R[1:, 1:] = ca
-        z = np.array([p[2], a[0], a[1]])
+        z = np.array([p[2]]) if a is None else np.array([p[2], a[0], a[1]])
+        if ca is not None:
+            R[1:, 1:] = ca
         if t >= self._t_first or math.isnan(self._t_first):
-            self._bins[0].add(t, z[0], R[0, 0])
-            self._bins[1].add(t, z[1], R[1, 1])
-            self._bins[2].add(t, z[2], R[2, 2])
+            for ch in range(m):
+                self._bins[ch].add(t, z[ch], R[ch, ch])
         hz = np.array([p[0], p[1], 0.0])
         hc = cp.copy()
         hc[2, :] = hc[:, 2] = 0.0
         hc[2, 2] = 1.0  # the horizontal filter's height is not used (module docstring)
         self.horizontal.predict(t if math.isnan(self._t_now) else self._t_now)
+        rejected = self.horizontal.n_rejected
         self.horizontal.update(PlatformMeasurement(t=t, p_WP=hz, cov_p_WP=hc))
+        if self.horizontal.n_rejected > rejected:
+            self.n_gated += 1  # the track's gate refused the pad's position (an outlier): its height too
+            return False
         return self._fuse(_Entry(t, H, z, R))
 
     def update_mru(self, t: float, roll_pitch: FloatArray, heave_rate: float, cov: FloatArray) -> bool:

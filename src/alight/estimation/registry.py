@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING, Any
 
 from alight.blockspec import BlockSpec, ResolveContext
 from alight.cameras import MountedCamera
+from alight.estimation.deck_estimator import DeckEstimatorConfig
+from alight.estimation.deck_platform import DeckPlatformEstimator
 from alight.estimation.kim_ukf import KimUkf, KimUkfConfig
 from alight.estimation.platform_ekf import PlatformEkf, PlatformEkfConfig
 from alight.estimation.platform_velocity import PlatformVelocityConfig
@@ -24,6 +26,10 @@ fixed 0.1 the speed estimate lagged a 6 m/s^2 stop by a second and the vehicle l
 
 def _unicycle_ekf(p: PlatformEkfConfig, ctx: MountedCamera) -> PlatformEstimator:
     return PlatformEkf(p)
+
+
+def _deck_kf(p: DeckEstimatorConfig, ctx: MountedCamera) -> PlatformEstimator:
+    return DeckPlatformEstimator(p)
 
 
 def _kim_ukf(p: KimUkfConfig, ctx: MountedCamera) -> PlatformEstimator:
@@ -50,6 +56,23 @@ def _sdu_kf_context(ctx: ResolveContext) -> dict[str, Any]:
     return {"velocity": PlatformVelocityConfig(measured_yaw_increments=True, yaw_fold=fold)}
 
 
+DECK_HORIZONTAL = PlatformEkfConfig(
+    use_turn_rate=True,
+    accel_noise=0.5,
+    heading_noise=0.1,
+    turn_accel_noise=0.1,
+    turn_jerk_noise=4.5,
+    init_max_span=4.0,
+    init_max_speed_std_mps=1.0,
+    maneuver_accel_noise=MANEUVER_ACCEL_NOISE,
+    horizontal_noise=0.5,
+    vertical_noise=0.0,
+)
+"""The deck estimator's horizontal track: the unicycle EKF as the ``alight`` preset flies it
+(``mission/preset_data/alight.yaml`` gives each value's reason), with the pad's horizontal random walk
+raised to 0.5 m/s/sqrt(Hz) for the sway of a pad above a rolling deck (deck_estimator.py), and no
+vertical channel (the heave channel is the height)."""
+
 PlatformEstimatorSpec = BlockSpec[MountedCamera, "PlatformEstimator"]
 """A platform-estimator block: parameters and the camera with its mount -> a platform estimator."""
 
@@ -71,6 +94,15 @@ PLATFORM_ESTIMATORS: dict[str, PlatformEstimatorSpec] = {
             "init_max_span": 4.0,
             "maneuver_accel_noise": MANEUVER_ACCEL_NOISE,
         },
+    ),
+    "deck_kf": BlockSpec(
+        "platform_estimator",
+        "deck_kf",
+        "a ship's deck: the unicycle EKF's track plus heave, roll and pitch as fitted CAR(4) oscillators,"
+        " predicted ahead, fed by the pad's pose and the ship's motion telemetry (issue 37)",
+        DeckEstimatorConfig,
+        build=_deck_kf,
+        defaults={"horizontal": DECK_HORIZONTAL},
     ),
     "kim_ukf": BlockSpec(
         "platform_estimator",
@@ -100,4 +132,4 @@ PLATFORM_ESTIMATORS: dict[str, PlatformEstimatorSpec] = {
 }
 """The platform-estimator stage's blocks by name."""
 
-__all__ = ["MANEUVER_ACCEL_NOISE", "PLATFORM_ESTIMATORS", "PlatformEstimatorSpec"]
+__all__ = ["DECK_HORIZONTAL", "MANEUVER_ACCEL_NOISE", "PLATFORM_ESTIMATORS", "PlatformEstimatorSpec"]

@@ -20,6 +20,10 @@ from alight.types import PIPELINE_BLOCKS
 OUTCOMES = ("landed", "crashed", "timeout", "aborted", "error")
 """Every value of :attr:`MissionResult.outcome`."""
 
+_SEA_ONLY = {"only": "sea"}
+"""Metadata of the fields only a mission on a vessel at sea reports (``platform.sea``): result.json
+carries them then, and results.csv leaves them empty for every other mission."""
+
 
 @dataclass(frozen=True, kw_only=True)
 class MissionResult:
@@ -69,6 +73,16 @@ class MissionResult:
     its centripetal acceleration is their product."""
     error: str | None = None
     """One line saying what went wrong, for ``outcome: error``."""
+    deck_touchdown_error_m: float | None = field(default=None, metadata=_SEA_ONLY)
+    """At sea: distance from the pad centre at first contact in the deck's plane (m)."""
+    deck_normal_speed_mps: float | None = field(default=None, metadata=_SEA_ONLY)
+    """At sea: speed relative to the deck under the vehicle along the deck's normal at first contact (m/s)."""
+    deck_tangential_speed_mps: float | None = field(default=None, metadata=_SEA_ONLY)
+    """At sea: that relative speed across the deck's normal, in the deck's plane (m/s)."""
+    deck_relative_tilt_deg: float | None = field(default=None, metadata=_SEA_ONLY)
+    """At sea: angle between the vehicle's z axis and the deck's normal at first contact (deg)."""
+    deck_tilt_deg: float | None = field(default=None, metadata=_SEA_ONLY)
+    """At sea: the deck's own tilt from the horizontal at first contact (deg)."""
 
     def __post_init__(self) -> None:
         if self.outcome not in OUTCOMES:
@@ -103,14 +117,14 @@ class MissionResult:
     @classmethod
     def from_result(cls, result: Mapping[str, Any], *, strict: bool = True) -> MissionResult:
         """From a ``result.json`` mapping. ``strict``: every field must be present (the runner's result
-        carries them all); otherwise a missing one is None."""
+        carries them all, but the deck's figures only at sea); otherwise a missing one is None."""
         kw: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             if f.name == "error":
                 kw["error"] = result.get("error")
                 continue
             if f.name not in result:
-                if strict:
+                if strict and f.metadata != _SEA_ONLY:
                     raise KeyError(f"result has no {f.name!r}")
                 continue
             kw[f.name] = result[f.name]

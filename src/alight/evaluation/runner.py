@@ -228,6 +228,10 @@ class _Flight:
         world = self.world
         for fix in world.telemetry_arrivals():
             self.pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
+        for mru in world.motion_telemetry_arrivals():  # a vessel's motion broadcast (platform.sea)
+            self.pipeline.on_deck_motion(
+                mru.t_stamp, mru.attitude, mru.cov_attitude, mru.heave_rate, mru.heave_rate_var
+            )
         world.capture()
         for t_cap, frame in world.deliveries():
             if self.camera_frames:

@@ -293,7 +293,7 @@ def resolve_blocks(scenario: Any, *, load_camera: bool = True, fresh_camera: boo
             camera_model = _load_camera(block, where, fresh_camera)
     color_needed = any(b.spec.needs.get("camera.color") == (True,) for b in chosen.values())
     color = color_needed if scenario.camera.color is None else bool(scenario.camera.color)
-    check_compatibility(chosen, ch.source, color=color)
+    check_compatibility(chosen, ch.source, color=color, level_pad=scenario.platform.sea is None)
     if load_camera:
         # a geolocator validates its parameters in its constructor (cheap): run it now, not in flight
         g = chosen["geolocator"]
@@ -305,14 +305,26 @@ def resolve_blocks(scenario: Any, *, load_camera: bool = True, fresh_camera: boo
     return EffectiveBlocks(scenario.preset, chosen, dict(preset.get("mission", {})), camera_model, color)
 
 
-def check_compatibility(chosen: Mapping[str, Block], source: Mapping[str, str], *, color: bool) -> None:
+def check_compatibility(
+    chosen: Mapping[str, Block], source: Mapping[str, str], *, color: bool, level_pad: bool = True
+) -> None:
     """Every block's ``needs`` against the other choices' names and ``provides``; the first mismatch
-    raises ``ValueError`` naming the key of the block whose need is not met."""
+    raises ``ValueError`` naming the key of the block whose need is not met. ``level_pad``: the pad is
+    level and at a fixed height (False on a ship's deck, ``platform.sea``), which a geolocator that
+    intersects rays with a horizontal plane needs (``platform.level``)."""
     uses_image = bool(chosen["detector"].spec.provides.get("image", True))
     for stage in STAGES:
         block = chosen[stage]
         for need, allowed in block.spec.needs.items():
             other_stage, _, feature = need.partition(".")
+            if need == "platform.level":
+                if level_pad not in allowed:
+                    where = source[stage].split(" (preset")[0]
+                    raise ValueError(
+                        f"{where}: {stage} '{block.name}' assumes a level pad at a fixed height, not a"
+                        " ship's deck that tilts and heaves (platform.sea): use the pnp geolocator"
+                    )
+                continue
             other = chosen[other_stage]
             if not feature:
                 ok = other.name in allowed

@@ -23,9 +23,11 @@ from numpy.typing import NDArray
 from alight.control import TiltLimited
 from alight.energy import QosEnergyModel
 from alight.estimation import EgoFed, PixelMeasured, PositionResetting, TelemetryFusing
+from alight.estimation.deck_platform import DeckMotionFusing, DeckPredicting
 from alight.estimation.ego_ekf import EgoEkf
 from alight.estimation.optical_flow import DeckFlow
 from alight.mission.guidance import Guidance
+from alight.mission.quiet_window import QuietWindowConfig, QuietWindowGate
 from alight.mission.range_filter import RangeFilter
 from alight.mission.state_machine import FailsafeEvent, Mission, MissionStatus
 from alight.mission.touchdown_detector import TouchdownDetector, TouchdownState
@@ -50,6 +52,9 @@ if TYPE_CHECKING:  # the Protocols, for annotations only
     from alight.perception import Detector, Geolocator
 
 _ZERO3 = np.zeros(3)
+MRU_VARIANCE_FLOOR = 1e-10
+"""Added to a motion reference unit's covariance (rad^2, (m/s)^2: 0.0006 deg, 1e-5 m/s): a simulated MRU
+without noise has a zero covariance, which no filter can fuse."""
 FINAL_DESCENT_PHASES = ("descend", "done")
 """The final action's phases that descend to a touchdown: the land detector runs, and touching the ground
 is the descent's end."""
@@ -240,6 +245,12 @@ class Pipeline:
         # ... and the per-frame and per-measurement ones (an isinstance on a runtime-checkable Protocol
         # walks the Protocol's attributes: tens of microseconds at the camera's rate)
         self._fuses_telemetry = isinstance(pe, TelemetryFusing)
+        # a ship's deck (issue 37): the estimator fuses the vessel's motion broadcast, and the landing
+        # meets the deck in a quiet window of its predicted motion (mission/quiet_window.py)
+        self._fuses_deck_motion = isinstance(pe, DeckMotionFusing)
+        if isinstance(pe, DeckPredicting):
+            gate = QuietWindowGate(pe, QuietWindowConfig(), mission.config.land_speed_mps)
+            mission.attach_quiet_window(gate)
         self._will_process: Callable[[float], bool] | None = (
             detector.will_process if isinstance(detector, FrameGate) else None
         )
@@ -366,6 +377,31 @@ class Pipeline:
         self.stats.telemetry_fixes += 1
         t0 = time.perf_counter()
         used = est.update_telemetry(t_stamp, p_WP, v_WP, cov)
+        self.stats.charge("platform_estimator", t0)
+        self._target = None
+        return used
+
+    def on_deck_motion(
+        self,
+        t_stamp: float,
+        roll_pitch: FloatArray,
+        cov_roll_pitch: FloatArray,
+        heave_rate: float,
+        heave_rate_var: float,
+    ) -> bool:
+        """The vessel's motion reference unit sample taken at ``t_stamp`` and arriving now: the deck's
+        (roll, pitch) (2,) rad with covariance (2, 2), and the pad's heave rate (m/s) with its variance.
+        The platform estimator fuses it when it can
+        (:class:`alight.estimation.deck_platform.DeckMotionFusing`); True when used."""
+        if not self._fuses_deck_motion:
+            return False
+        est = cast(DeckMotionFusing, self.platform_estimator)  # checked once, in __init__
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = cov_roll_pitch
+        cov[2, 2] = heave_rate_var
+        cov += np.eye(3) * MRU_VARIANCE_FLOOR  # a noiseless simulated MRU: still a proper covariance
+        t0 = time.perf_counter()
+        used = est.update_deck_motion(t_stamp, roll_pitch, heave_rate, cov)
         self.stats.charge("platform_estimator", t0)
         self._target = None
         return used

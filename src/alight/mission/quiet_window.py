@@ -24,15 +24,27 @@ the answer is a go-around.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from alight.errors import ConfigError, EstimationError
+from alight.estimation.deck_estimator import DeckPrediction
 from alight.types import FloatArray
 
-__all__ = ["QuietWindow", "QuietWindowConfig", "check_commitment", "feasible_contacts", "find_quiet_window"]
+__all__ = [
+    "DeckPredictor",
+    "QuietWindow",
+    "QuietWindowConfig",
+    "QuietWindowGate",
+    "check_commitment",
+    "contact_times",
+    "feasible_contacts",
+    "find_quiet_window",
+    "plan_descent",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,9 +76,27 @@ class QuietWindowConfig:
     close to the motion's own."""
     min_window_s: float = 0.0
     """Feasible contact times must span at least this long (s) for a window to be taken."""
+    hold_clearance_m: float = 0.6
+    """The descent waits this far above the deck's highest predicted point (its height plus k sigma over
+    ``horizon_s``) (m): the mission's commit height (``land_commit_height_m``, 0.6 m), below which the
+    camera may lose the pad; so the wait is above every gate's reach and the final descent is the
+    committed one."""
+    horizon_s: float = 10.0
+    """How far ahead the deck is predicted for the wait's height and the window (s): more than the
+    final descent from the hold (about 2-4 s at 0.4 m/s) plus a wave period's worth of choice."""
+    grid_step_s: float = 0.1
+    """Time step of that prediction (s)."""
+    replan_every_s: float = 0.2
+    """A new prediction and plan at most this often while waiting or descending (s)."""
+    max_wait_s: float = 60.0
+    """Longest wait for a window before a go-around (s): several wave periods with no quiet one."""
 
     def __post_init__(self) -> None:
         for name in ("max_tilt_rad", "max_closing_mps", "touchdown_sink_mps"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ConfigError(f"quiet window: {name} must be finite and > 0, got {v}")
+        for name in ("hold_clearance_m", "horizon_s", "grid_step_s", "replan_every_s", "max_wait_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ConfigError(f"quiet window: {name} must be finite and > 0, got {v}")
@@ -196,3 +226,158 @@ def check_commitment(
         return False
     j = i if abs(ts[i] - t_contact) < 1e-9 or i == 0 else i - 1
     return bool(ok[j] and ok[i])
+
+
+# -- timing a descent from a hold into a window ----------------------------------------------------------
+
+
+def contact_times(t: FloatArray, z_deck: FloatArray, z_start: float, sink_mps: float) -> FloatArray:
+    """For a descent at ``sink_mps`` from the height ``z_start`` (m) started at each grid time t[s], the
+    first grid time at or after it where the descending height meets the deck's ``z_deck`` (k,); NaN
+    where it does not within the grid. (k,) s."""
+    ts = np.asarray(t, dtype=np.float64)
+    z = np.asarray(z_deck, dtype=np.float64)
+    # ramp[s, i] = z_start - sink (t_i - t_s), valid for i >= s
+    ramp = z_start - sink_mps * (ts[None, :] - ts[:, None])
+    met = (ramp <= z[None, :]) & (ts[None, :] >= ts[:, None])
+    first = np.argmax(met, axis=1)
+    out: FloatArray = ts[first].astype(np.float64)
+    out[~met.any(axis=1)] = math.nan
+    return out
+
+
+def plan_descent(
+    pred: DeckPrediction, z_start: float, t_now: float, config: QuietWindowConfig
+) -> QuietWindow | None:
+    """The quiet window to meet from a hold at ``z_start`` (m) with a descent at the config's
+    ``touchdown_sink_mps``: the first window (run of feasible contact times, :func:`feasible_contacts`)
+    that some descent started at or after ``t_now`` reaches, and of the starts that reach it the one
+    whose contact is nearest the window's middle. None: no window in the prediction."""
+    c = config
+    t = pred.t
+    ok = feasible_contacts(t, pred.heave_rate, pred.roll, pred.pitch, pred.cov, c)
+    tc = contact_times(t, pred.heave, z_start, c.touchdown_sink_mps)
+    run = np.concatenate([[0], np.cumsum(np.diff(ok.astype(np.int64)) == 1)]) + (1 if ok[0] else 0)
+    run = np.where(ok, run, 0)  # the window number of each grid time (0: not feasible)
+    starts = np.nonzero((t >= t_now - 1e-12) & np.isfinite(tc))[0]
+    if starts.size == 0:
+        return None
+    idx = np.searchsorted(t, tc[starts])
+    idx = np.minimum(idx, t.shape[0] - 1)
+    hit = run[idx]
+    good = hit > 0
+    if not good.any():
+        return None
+    first = int(hit[good].min())
+    members = np.nonzero(run == first)[0]
+    t_open, t_close = float(t[members[0]]), float(t[members[-1]])
+    if t_close - t_open < c.min_window_s:
+        return None
+    mid = 0.5 * (t_open + t_close)
+    cand = starts[hit == first]
+    best = int(cand[np.argmin(np.abs(tc[cand] - mid))])
+    return QuietWindow(t_open, t_close, float(tc[best]), float(t[best]))
+
+
+class DeckPredictor(Protocol):
+    """What the gate reads: the deck predicted at absolute times (None before any measurement)."""
+
+    def predict_deck(self, times: FloatArray) -> DeckPrediction | None: ...
+
+
+GateDecision = Literal["descend", "hold", "go_around"]
+
+
+class QuietWindowGate:
+    """The quiet-window touchdown's decisions, step by step, for the mission's landing (the state
+    machine's hook): wait above the deck's highest predicted point, start the final descent so that it
+    meets the deck inside the next quiet window, and go around when a fresh prediction says the window
+    closes (or opens too late) for the contact the descent is heading for.
+
+    :meth:`step` is called at the mission's rate in the landing with the body's height ``z_WB``:
+
+    - ``"descend"`` above the wait's height (the descent approaches it), and once the final descent has
+      started;
+    - ``"hold"`` at or below that height until the planned start of the final descent;
+    - ``"go_around"`` when, descending, the contact predicted from the descent's own start and speed is
+      no longer feasible, or no window came within ``max_wait_s``; :attr:`reason` says which.
+    """
+
+    def __init__(self, deck: DeckPredictor, config: QuietWindowConfig, sink_mps: float) -> None:
+        self.deck = deck
+        self.config = replace(config, touchdown_sink_mps=sink_mps)
+        self.window: QuietWindow | None = None
+        self.reason = ""
+        self._t_plan = -math.inf
+        self._z_start = math.nan
+        self._descending = False
+        self._t_start = math.nan
+        self._t_wait: float | None = None
+        self.n_plans = 0
+
+    def reset(self) -> None:
+        """A new approach (after a go-around): no plan, not waiting."""
+        self.window, self._descending, self._t_wait, self._t_plan = None, False, None, -math.inf
+
+    def _predict(self, t: float) -> DeckPrediction | None:
+        c = self.config
+        return self.deck.predict_deck(t + np.arange(0.0, c.horizon_s + 0.5 * c.grid_step_s, c.grid_step_s))
+
+    def hold_height(self, pred: DeckPrediction) -> float:
+        """The wait's height (m): the highest predicted deck point, k sigma up, plus the clearance."""
+        c = self.config
+        top = pred.heave + c.margin_sigma * np.sqrt(np.maximum(pred.cov[:, 0, 0], 0.0))
+        return float(top.max()) + c.hold_clearance_m
+
+    def step(self, t: float, z_WB: float) -> GateDecision:
+        """The decision at ``t`` (class docstring)."""
+        c = self.config
+        if self._descending:
+            return self._check(t)
+        if t - self._t_plan < c.replan_every_s and self._t_wait is not None:
+            return self._hold_or_go(t)
+        pred = self._predict(t)
+        self._t_plan = t
+        if pred is None or z_WB > self.hold_height(pred):
+            self._t_wait = None
+            return "descend"  # still above the wait's height: keep approaching it
+        if self._t_wait is None:
+            self._t_wait, self._z_start = t, z_WB  # the guidance holds the height it had here
+        self.window = plan_descent(pred, self._z_start, t, c)
+        self.n_plans += 1
+        return self._hold_or_go(t)
+
+    def _hold_or_go(self, t: float) -> GateDecision:
+        w = self.window
+        if w is not None and t >= w.t_start_descent - 1e-9:
+            self._descending, self._t_plan = True, t
+            self._t_start = t
+            return "descend"
+        if self._t_wait is not None and t - self._t_wait > self.config.max_wait_s:
+            self.reason = "no quiet window in the deck's motion"
+            return "go_around"
+        return "hold"
+
+    def _check(self, t: float) -> GateDecision:
+        """Descending: the contact the descent heads for, with a fresh prediction, still feasible."""
+        c = self.config
+        if t - self._t_plan < c.replan_every_s:
+            return "descend"
+        self._t_plan = t
+        pred = self._predict(t)
+        if pred is None:
+            return "descend"
+        z_now = self._z_start - c.touchdown_sink_mps * (t - self._t_start)
+        tc = contact_times(pred.t[:1], pred.heave[:1], z_now, c.touchdown_sink_mps)
+        if math.isfinite(float(tc[0])):
+            return "descend"  # at the deck now: the touchdown is the land detector's
+        tc = contact_times(pred.t, pred.heave, z_now, c.touchdown_sink_mps)
+        t_contact = float(tc[0])
+        if math.isfinite(t_contact) and t_contact - t <= c.timing_tolerance_s + c.grid_step_s:
+            return "descend"  # contact within the timing tolerance: too late and too low to turn back
+        if not math.isfinite(t_contact) or not check_commitment(
+            pred.t, pred.heave_rate, pred.roll, pred.pitch, pred.cov, t_contact, c
+        ):
+            self.reason = "the deck's quiet window closed before contact"
+            return "go_around"
+        return "descend"

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import Field
@@ -44,6 +44,9 @@ from pydantic.dataclasses import dataclass as pydantic_dataclass
 from alight.mission.touchdown_detector import TouchdownConfig
 from alight.settings import SETTINGS, Altitude, Duration, NonNegFloat, PositiveFloat
 from alight.types import EgoState, FloatArray, Mode, PlatformEstimate
+
+if TYPE_CHECKING:
+    from alight.mission.quiet_window import QuietWindowGate
 
 FinalAction = Literal["hover", "return", "land_in_place"]
 FINAL_ACTIONS: tuple[str, ...] = ("hover", "return", "land_in_place")
@@ -260,6 +263,8 @@ TRANSITIONS: tuple[tuple[Mode, Mode, str], ...] = (
     (Mode.LAND, Mode.GO_AROUND, "ground below the committed descent"),
     (Mode.LAND, Mode.GO_AROUND, "the deck left the estimate under the committed descent (optical flow)"),
     (Mode.LAND, Mode.GO_AROUND, "time budget spent"),
+    (Mode.LAND, Mode.GO_AROUND, "no quiet window in the deck's motion"),
+    (Mode.LAND, Mode.GO_AROUND, "the deck's quiet window closed before contact"),
     (Mode.GO_AROUND, Mode.TRACK, "tracking height regained"),
     (Mode.GO_AROUND, Mode.ABORT, "too many go-arounds"),
     (Mode.GO_AROUND, Mode.ABORT, "time budget spent"),
@@ -341,6 +346,10 @@ class Mission:
 
     def __init__(self, config: MissionConfig | None = None) -> None:
         self.config = config or MissionConfig()
+        self.quiet_window: QuietWindowGate | None = None
+        """The quiet-window touchdown on a ship's deck (:meth:`attach_quiet_window`); None: off."""
+        self._quiet_since = math.nan
+        self._quiet_hold = False
         self.reset()
 
     def reset(self) -> None:
@@ -528,6 +537,7 @@ class Mission:
 
         elif mode is Mode.LAND:
             self._step_land(t, ego, target, age, over_budget, touchdown, range_m, deck_velocity_W)
+            self.descent_hold = self.descent_hold or (self._quiet_hold and self.mode is Mode.LAND)
 
         elif mode is Mode.GO_AROUND:
             self._step_go_around(t, ego, target, over_budget)
@@ -641,6 +651,8 @@ class Mission:
         if target is None:
             self._go_around(t, "target lost during the descent")
             return
+        if self._quiet_window_step(t, ego):
+            return
         height = float(ego.p_WB[2] - target.p_WP[2])
         no_lull = self._no_lull()
         turning = self._turning_hard(t, target)
@@ -696,6 +708,30 @@ class Mission:
                     self._go_around(t, "descent held too long")
                 else:
                     self._go_around(t, "no lull in the tilt" if no_lull else "the platform kept turning hard")
+
+    # -- the quiet-window touchdown on a ship's deck (issue 37; the logic is in mission/quiet_window.py) --
+    def attach_quiet_window(self, gate: QuietWindowGate) -> None:
+        """Land in the deck's quiet windows (a platform estimator that predicts the deck's motion)."""
+        self.quiet_window = gate
+
+    def _quiet_window_step(self, t: float, ego: EgoState) -> bool:
+        """The quiet-window gate in the landing: True when it sent the vehicle around (the step ends);
+        while it waits for its window, :meth:`step` holds the descent after the other gates have run."""
+        gate = self.quiet_window
+        was_holding, self._quiet_hold = self._quiet_hold, False
+        if gate is None:
+            return False
+        if self._quiet_since != self.mode_since:  # a new approach
+            gate.reset()
+            self._quiet_since = self.mode_since
+        decision = gate.step(t, float(ego.p_WB[2]))
+        if decision == "go_around":
+            self._go_around(t, gate.reason)
+            return True
+        if decision == "hold" and not was_holding:
+            self._event(t, "descent_hold", "waiting above the deck for a quiet window")
+        self._quiet_hold = decision == "hold"
+        return False
 
     def _tilt_wait_event(self, t: float, target: PlatformEstimate, no_lull: bool) -> None:
         """Record that the descent waits at the commit height: for a lull in the tilt (``no_lull``), or

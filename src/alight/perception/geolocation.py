@@ -137,7 +137,31 @@ class PnpGeolocator:
         p_WP = p_WC + R_WC @ res.p_CP
         cov = world_covariance(R_WC, res.p_CP, res.cov_p_CP, self.sigma_ego_pos_m, self.sigma_ego_att_rad)
         yaw, yaw_var = self._yaw(R_WC, res)
-        return PlatformMeasurement(t=obs.t, p_WP=p_WP, cov_p_WP=cov, yaw=yaw, yaw_var=yaw_var)
+        n_WP, cov_n = self._normal(R_WC, res)
+        return PlatformMeasurement(
+            t=obs.t, p_WP=p_WP, cov_p_WP=cov, yaw=yaw, yaw_var=yaw_var, n_WP=n_WP, cov_n_WP=cov_n
+        )
+
+    def _normal(self, R_WC: FloatArray, res: PnpResult) -> tuple[FloatArray, FloatArray]:
+        """The pad's normal in W, ``R_WC R_CP e_z``, and its covariance (3, 3): the PnP rotation's
+        covariance through the Jacobian (central differences in the Rodrigues vector) plus the ego
+        attitude's ``sigma_att^2`` across the normal (a small rotation moves it perpendicular to itself)."""
+
+        def normal_of_rvec(rvec: FloatArray) -> FloatArray:
+            R_CP, _ = cv2.Rodrigues(rvec)
+            out: FloatArray = R_WC @ R_CP[:, 2]
+            return out
+
+        n = R_WC @ res.R_CP[:, 2]
+        n = n / float(np.linalg.norm(n))
+        J = np.zeros((3, 3))
+        h = 1e-6
+        for k in range(3):
+            d = np.zeros(3)
+            d[k] = h
+            J[:, k] = (normal_of_rvec(res.rvec + d) - normal_of_rvec(res.rvec - d)) / (2 * h)
+        cov = J @ res.cov_pose[:3, :3] @ J.T + self.sigma_ego_att_rad**2 * (np.eye(3) - np.outer(n, n))
+        return n, 0.5 * (cov + cov.T)
 
     def _yaw(self, R_WC: FloatArray, res: PnpResult) -> tuple[float, float]:
         """Yaw of the pad x axis in W (wrapped by ``yaw_fold``) and its variance (rad^2)."""

@@ -287,7 +287,7 @@ GEOLOCATORS: dict[str, GeolocatorSpec] = {
         defaults={"deck_height_m": None},
         context={"deck_height_m": "platform.pad_height_m"},
         context_values=_deck_height("deck_height_m"),
-        needs={"detector.observation": ("pixel",)},
+        needs={"detector.observation": ("pixel",), "platform.level": (True,)},
     ),
     "homography": BlockSpec(
         "geolocator",
@@ -298,7 +298,7 @@ GEOLOCATORS: dict[str, GeolocatorSpec] = {
         defaults={"plane_z_W": None},
         context={"plane_z_W": "platform.pad_height_m"},
         context_values=_deck_height("plane_z_W"),
-        needs={"camera.model": ("pinhole",), "detector.observation": ("pixel",)},
+        needs={"camera.model": ("pinhole",), "detector.observation": ("pixel",), "platform.level": (True,)},
     ),
     "direct": BlockSpec(
         "geolocator",

@@ -12,7 +12,8 @@ The contact of the feet with the deck and the ground is part of the dynamics
 
 numba's cache of these kernels is keyed on this file's content alone: the machine code of the callees
 from ``sim/quadrotor.py`` and ``control/`` is compiled into it, and a change there reaches an existing
-cache only when this file changes too (or its ``__pycache__`` entries are removed).
+cache only when this file changes too (or its ``__pycache__`` entries are removed). (Changed with
+``quadrotor.py``'s tilted deck of a vessel at sea.)
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ IN_W_CMD = 1  # body-rate command (rad/s), [1:4]
 IN_MOTORS_ON = 4  # 1.0 while the motors run (the pipeline's command)
 IN_F_EXT = 5  # external (wind) force in W (N), [5:8]
 IN_V_WIND = 8  # air velocity in W (m/s), [8:11]
-IN_DECK = 11  # the deck's state at the start of the batch, layout DK_* of sim.quadrotor, [11:24]
+IN_DECK = 11  # the deck's state at the start of the batch, layout DK_* of sim.quadrotor, [11:41]
 N_IN = IN_DECK + N_DK
 
 

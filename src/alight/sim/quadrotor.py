@@ -322,7 +322,16 @@ DK_A = 9
 """Deck acceleration in W (m/s^2), [9:12]."""
 DK_YAW_RATE = 12
 """Deck heading rate (rad/s)."""
-N_DK = 13
+DK_TILTED = 13
+"""1.0 for a deck that tilts (a vessel at sea): the entries below describe it, and the square of
+``DK_HALF``, the heading and its rate are not used."""
+DK_R = 14
+"""The deck's orientation R_WP at the deck time, row-major, [14:23]; its third column is the normal."""
+DK_W = 23
+"""The deck's angular velocity in W (rad/s), [23:26]."""
+DK_EXT = 26
+"""The deck's extent in its own frame P: x_min, x_max, y_min, y_max (m), [26:30]."""
+N_DK = 30
 
 
 def pack_contact_params(
@@ -369,6 +378,47 @@ def deck_at(deck: FloatArray, tau: float, out: FloatArray) -> None:
         out[DK_P + j] = deck[DK_P + j] + deck[DK_V + j] * tau + 0.5 * deck[DK_A + j] * tau * tau
         out[DK_V + j] = deck[DK_V + j] + deck[DK_A + j] * tau
     out[DK_YAW] = deck[DK_YAW] + deck[DK_YAW_RATE] * tau
+    if deck[DK_TILTED] > 0.5:
+        _turn_deck(deck, tau, out)
+
+
+@njit(cache=True)
+def _turn_deck(deck: FloatArray, tau: float, out: FloatArray) -> None:
+    """The tilted deck's orientation ``tau`` seconds on at its constant angular velocity: R = Exp(w tau)
+    R0 (Rodrigues), into ``out``'s ``DK_R`` entries."""
+    ax, ay, az = deck[DK_W] * tau, deck[DK_W + 1] * tau, deck[DK_W + 2] * tau
+    th2 = ax * ax + ay * ay + az * az
+    if th2 < 1e-18:
+        return
+    th = math.sqrt(th2)
+    a = math.sin(th) / th
+    b = (1.0 - math.cos(th)) / th2
+    # E = I + a K + b K^2, K = [axis x]
+    E = np.empty((3, 3))
+    E[0, 0] = 1.0 - b * (ay * ay + az * az)
+    E[1, 1] = 1.0 - b * (ax * ax + az * az)
+    E[2, 2] = 1.0 - b * (ax * ax + ay * ay)
+    E[0, 1] = -a * az + b * ax * ay
+    E[1, 0] = a * az + b * ax * ay
+    E[0, 2] = a * ay + b * ax * az
+    E[2, 0] = -a * ay + b * ax * az
+    E[1, 2] = -a * ax + b * ay * az
+    E[2, 1] = a * ax + b * ay * az
+    for i in range(3):
+        for j in range(3):
+            out[DK_R + 3 * i + j] = (
+                E[i, 0] * deck[DK_R + j] + E[i, 1] * deck[DK_R + 3 + j] + E[i, 2] * deck[DK_R + 6 + j]
+            )
+
+
+@njit(cache=True)
+def tilted_deck_top(deck: FloatArray) -> float:
+    """The height of a tilted deck's highest corner (m)."""
+    top = -math.inf
+    for x in (deck[DK_EXT], deck[DK_EXT + 1]):
+        for y in (deck[DK_EXT + 2], deck[DK_EXT + 3]):
+            top = max(top, deck[DK_P + 2] + deck[DK_R + 6] * x + deck[DK_R + 7] * y)
+    return top
 
 
 @njit(cache=True)
@@ -377,8 +427,55 @@ def feet_clear(z_WB: float, deck: FloatArray, cp: FloatArray) -> bool:
     height ``z_WB`` (m), whatever the attitude: :func:`contact_wrench` is then zero."""
     gh, gw = cp[CP_GEAR_H], cp[CP_GEAR_W]
     reach = math.sqrt(gh * gh + 2.0 * gw * gw)
-    top = deck[DK_P + 2] if deck[DK_ON] > 0.5 and deck[DK_P + 2] > 0.0 else 0.0
+    if deck[DK_TILTED] > 0.5:
+        top = max(tilted_deck_top(deck), 0.0) if deck[DK_ON] > 0.5 else 0.0
+    else:
+        top = deck[DK_P + 2] if deck[DK_ON] > 0.5 and deck[DK_P + 2] > 0.0 else 0.0
     return z_WB - reach > top
+
+
+@njit(cache=True)
+def tilted_deck_force(
+    deck: FloatArray,
+    cp: FloatArray,
+    p: tuple[float, float, float],
+    v: tuple[float, float, float],
+    f: FloatArray,
+) -> int:
+    """The force of a tilted, moving deck on a foot at ``p`` moving at ``v`` (W), into ``f`` (3,): 1 when
+    the foot presses on the deck, -1 when it is in the deck's volume without pressing (separating), 0
+    when it is not over the deck (the ground may hold it). The deck's surface velocity under the foot is
+    v_WP + w x s (s the surface point from the deck's centre); the normal force ``max(k d + c d', 0)``
+    acts along the deck's normal (d the penetration along it), the friction ``-mu N v_t / sqrt(|v_t|^2
+    + v_slip^2)`` in the deck's plane against the foot's velocity relative to the surface."""
+    dx, dy, dz = p[0] - deck[DK_P], p[1] - deck[DK_P + 1], p[2] - deck[DK_P + 2]
+    r0 = DK_R
+    lx = deck[r0] * dx + deck[r0 + 3] * dy + deck[r0 + 6] * dz
+    ly = deck[r0 + 1] * dx + deck[r0 + 4] * dy + deck[r0 + 7] * dz
+    lz = deck[r0 + 2] * dx + deck[r0 + 5] * dy + deck[r0 + 8] * dz
+    ext = DK_EXT
+    if not (
+        deck[ext] <= lx <= deck[ext + 1]
+        and deck[ext + 2] <= ly <= deck[ext + 3]
+        and -cp[CP_DECK_DEPTH] < lz <= 0.0
+    ):
+        return 0
+    nx, ny, nz = deck[r0 + 2], deck[r0 + 5], deck[r0 + 8]
+    sx, sy, sz = dx - lz * nx, dy - lz * ny, dz - lz * nz
+    wx, wy, wz = deck[DK_W], deck[DK_W + 1], deck[DK_W + 2]
+    rx = v[0] - (deck[DK_V] + wy * sz - wz * sy)
+    ry = v[1] - (deck[DK_V + 1] + wz * sx - wx * sz)
+    rz = v[2] - (deck[DK_V + 2] + wx * sy - wy * sx)
+    vn = rx * nx + ry * ny + rz * nz
+    normal = cp[CP_K] * (-lz) - cp[CP_C] * vn
+    if normal <= 0.0:
+        return -1
+    tx, ty, tz = rx - vn * nx, ry - vn * ny, rz - vn * nz
+    scale = cp[CP_MU] * normal / math.sqrt(tx * tx + ty * ty + tz * tz + cp[CP_V_SLIP] ** 2)
+    f[0] = normal * nx - scale * tx
+    f[1] = normal * ny - scale * ty
+    f[2] = normal * nz - scale * tz
+    return 1
 
 
 @njit(cache=True)
@@ -392,7 +489,8 @@ def contact_wrench(
 
     A foot whose (x, y) is over the deck square and whose height is between the deck surface and
     ``deck_depth`` below it presses on the deck, whose surface velocity at the foot is the deck's
-    velocity plus its turn (yaw rate x lever arm); any other foot below z = 0 presses on the ground.
+    velocity plus its turn (yaw rate x lever arm); any other foot below z = 0 presses on the ground. A
+    tilted deck (``DK_TILTED``, a vessel at sea) is met along its normal (:func:`tilted_deck_force`).
     Normal force ``max(k d + c d', 0)`` (d the penetration), friction ``-mu N v_t / sqrt(|v_t|^2 +
     v_slip^2)`` against the foot's tangential velocity relative to the surface.
 
@@ -418,6 +516,8 @@ def contact_wrench(
     k, c, mu, vs = cp[CP_K], cp[CP_C], cp[CP_MU], cp[CP_V_SLIP]
     cyaw, syaw = math.cos(deck[DK_YAW]), math.sin(deck[DK_YAW])
     half = deck[DK_HALF]
+    tilted = deck_on and deck[DK_TILTED] > 0.5
+    ff = np.empty(3)
     touching = 0
     for i in range(4):
         rx = gw if (i == 0 or i == 3) else -gw
@@ -438,7 +538,16 @@ def contact_wrench(
         svy = 0.0
         svz = 0.0
         on_deck = False
-        if deck_on:
+        if tilted:
+            hit = tilted_deck_force(deck, cp, (px, py, pz), (vx, vy, vz), ff)
+            if hit < 0:
+                continue
+            if hit > 0:
+                touching += 1
+                counts[0] += 1.0
+                add_foot_wrench(R, (rx, ry, rz), ff, f_W, tau_B)
+                continue
+        elif deck_on:
             dx = px - deck[DK_P]
             dy = py - deck[DK_P + 1]
             dz = deck[DK_P + 2]
@@ -478,6 +587,23 @@ def contact_wrench(
         tau_B[1] += rz * bx - rx * bz
         tau_B[2] += rx * by - ry * bx
     return touching
+
+
+@njit(cache=True)
+def add_foot_wrench(
+    R: FloatArray, r_B: tuple[float, float, float], f: FloatArray, f_W: FloatArray, tau_B: FloatArray
+) -> None:
+    """Add a foot's force ``f`` (W) at ``r_B`` (B) to the body's force in W and torque in B."""
+    rx, ry, rz = r_B
+    f_W[0] += f[0]
+    f_W[1] += f[1]
+    f_W[2] += f[2]
+    bx = R[0, 0] * f[0] + R[1, 0] * f[1] + R[2, 0] * f[2]
+    by = R[0, 1] * f[0] + R[1, 1] * f[1] + R[2, 1] * f[2]
+    bz = R[0, 2] * f[0] + R[1, 2] * f[1] + R[2, 2] * f[2]
+    tau_B[0] += ry * bz - rz * by
+    tau_B[1] += rz * bx - rx * bz
+    tau_B[2] += rx * by - ry * bx
 
 
 @njit(cache=True)

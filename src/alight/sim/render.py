@@ -715,6 +715,7 @@ class Renderer:
         *,
         t_s: float | None = None,
         noise_offset: tuple[int, int] | None = None,
+        R_WP: FloatArray | None = None,
     ) -> NDArray[np.uint8]:
         """The camera image, uint8, shape (height, width) (grey) or (height, width, 3) (BGR, with
         ``RenderOptions.color``), a new array on every call.
@@ -724,7 +725,8 @@ class Renderer:
         (rad); ``w_WB_B`` (3,) body rates (rad/s) for the motion blur (ignored when the exposure time is 0);
         ``t_s`` the capture time (s) for the brightness drift (ignored when there is none);
         ``noise_offset`` the frame's window into the sensor-noise bank from :meth:`draw_noise_offset`
-        (default: drawn now).
+        (default: drawn now); ``R_WP`` (3, 3) the deck's orientation when it tilts (a vessel at sea; the
+        yaw is then not used), None: level, turned by ``yaw``.
         """
         p_WC = np.asarray(p_WC, dtype=np.float64)
         R_WC = np.asarray(R_WC, dtype=np.float64)
@@ -748,7 +750,11 @@ class Renderer:
         H, W = self.height, self.width
         out = np.empty((H, W, *self._chan), np.uint8)
 
-        deck = self._deck_maps(p_WC, R_WC, p_WP, yaw)
+        if R_WP is not None:
+            R_WP = np.asarray(R_WP, dtype=np.float64)
+            if R_WP.shape != (3, 3) or not np.isfinite(R_WP).all():
+                raise ValueError("render needs a finite deck orientation R_WP (3, 3)")
+        deck = self._deck_maps(p_WC, R_WC, p_WP, yaw, R_WP)
         if deck is not None and deck[0] == (0, H, 0, W) and deck[2] == H * W:
             # the deck fills the image: no ground to draw, remap straight into the output
             b = self._buf
@@ -844,17 +850,23 @@ class Renderer:
             cv2.resize(b.half, (self.width, self.height), dst=out, interpolation=cv2.INTER_LINEAR)
 
     def _deck_maps(
-        self, p_WC: FloatArray, R_WC: FloatArray, p_WP: FloatArray, yaw: float
+        self, p_WC: FloatArray, R_WC: FloatArray, p_WP: FloatArray, yaw: float, R_WP: FloatArray | None
     ) -> tuple[tuple[int, int, int, int], _Level, int] | None:
         """Deck texture maps and hit mask over the deck's bounding box in the image (into the buffers).
         Returns ``((v0, v1, u0, u1), texture level, number of deck pixels)``, or None when no deck pixel
-        is visible."""
-        h_p = float(p_WC[2] - p_WP[2])
-        if h_p <= _MIN_HEIGHT_M:
-            return None  # at or below the deck plane: the deck's top is not visible
-        c, s = math.cos(yaw), math.sin(yaw)
-        R_WP = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        p_PC = R_WP.T @ (p_WC - p_WP)
+        is visible. ``R_WP``: a tilted deck's orientation (None: level, turned by ``yaw``)."""
+        if R_WP is None:
+            h_p = float(p_WC[2] - p_WP[2])
+            if h_p <= _MIN_HEIGHT_M:
+                return None  # at or below the deck plane: the deck's top is not visible
+            c, s = math.cos(yaw), math.sin(yaw)
+            R_WP = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            p_PC = R_WP.T @ (p_WC - p_WP)
+        else:
+            p_PC = R_WP.T @ (p_WC - p_WP)
+            h_p = float(p_PC[2])  # the camera's height above the tilted deck's plane
+            if h_p <= _MIN_HEIGHT_M:
+                return None
         R_PC = R_WP.T @ R_WC
         H, W = self.height, self.width
         # bounding box of the deck's image from its outline (the whole image if part of it is behind

@@ -467,6 +467,63 @@ def range_to_surface(
 
 
 @njit(cache=True)
+def range_to_deck(
+    o_W: FloatArray, d_W: FloatArray, p_WP: FloatArray, R_WP: FloatArray, extent_P: FloatArray
+) -> float:
+    """Distance (m) along the unit ray o_W + lambda d_W, lambda >= 0, to the first surface: a tilted deck
+    (the plane through ``p_WP`` with normal ``R_WP[:, 2]``, over ``extent_P`` = x_min, x_max, y_min, y_max
+    on its own axes: a vessel at sea) or the sea's mean level z = 0. ``inf`` when the ray does not point
+    down. A ray from above the deck's plane that meets it inside the extent hits the deck."""
+    dz: float = d_W[2]
+    if dz >= 0.0:
+        return math.inf
+    nx, ny, nz = R_WP[0, 2], R_WP[1, 2], R_WP[2, 2]
+    ox, oy, oz = o_W[0] - p_WP[0], o_W[1] - p_WP[1], o_W[2] - p_WP[2]
+    h = ox * nx + oy * ny + oz * nz  # the origin's height above the deck's plane
+    dn = d_W[0] * nx + d_W[1] * ny + d_W[2] * nz
+    if h >= -PAD_THICKNESS_M and dn < 0.0:
+        lam: float = max(h, 0.0) / -dn
+        hx, hy, hz = ox + lam * d_W[0], oy + lam * d_W[1], oz + lam * d_W[2]
+        lx = R_WP[0, 0] * hx + R_WP[1, 0] * hy + R_WP[2, 0] * hz
+        ly = R_WP[0, 1] * hx + R_WP[1, 1] * hy + R_WP[2, 1] * hz
+        if extent_P[0] <= lx <= extent_P[1] and extent_P[2] <= ly <= extent_P[3]:
+            return lam
+    sea: float = max(o_W[2], 0.0) / -dz
+    return sea
+
+
+@njit(cache=True)
+def _sensor_ray(p_WB: FloatArray, q_WB: FloatArray, origin_B: FloatArray) -> tuple[FloatArray, FloatArray]:
+    # the sensor's origin in W and its ray along -z_B
+    o = np.empty(3)
+    d = np.empty(3)
+    for k in range(3):
+        o[k] = p_WB[k]
+    for k in range(3):
+        ax, ay, az = _body_axis(q_WB, k)
+        o[0] += ax * origin_B[k]
+        o[1] += ay * origin_B[k]
+        o[2] += az * origin_B[k]
+    zx, zy, zz = _body_axis(q_WB, np.int64(2))
+    d[0], d[1], d[2] = -zx, -zy, -zz
+    return o, d
+
+
+@njit(cache=True)
+def true_range_to_deck(
+    p_WB: FloatArray,
+    q_WB: FloatArray,
+    origin_B: FloatArray,
+    p_WP: FloatArray,
+    R_WP: FloatArray,
+    extent_P: FloatArray,
+) -> float:
+    """:func:`range_to_deck` along the sensor's ray (at ``origin_B`` in B, along -z_B) (m)."""
+    o, d = _sensor_ray(p_WB, q_WB, origin_B)
+    return range_to_deck(o, d, p_WP, R_WP, extent_P)
+
+
+@njit(cache=True)
 def _true_range(
     p_WB: FloatArray, q_WB: FloatArray, origin_B: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
 ) -> float:
@@ -515,6 +572,19 @@ class RangeFinder:
         """As :meth:`measure`, with the pad centre ``p_WP`` (3,) and heading ``yaw`` given directly (for a
         caller that holds the platform's states as arrays)."""
         r = _true_range(_f64(p_WB), _f64(q_WB), self._origin_B, _f64(p_WP), float(yaw), pad_size_m)
+        noise = float(self._stream.row()[0]) * self.config.noise_std_m
+        if r > self.config.max_range_m:
+            return math.inf
+        if r < self.config.min_range_m:
+            return -math.inf
+        return max(r + noise, 0.0)
+
+    def measure_on_deck(
+        self, p_WB: FloatArray, q_WB: FloatArray, p_WP: FloatArray, R_WP: FloatArray, extent_P: FloatArray
+    ) -> float:
+        """As :meth:`measure_at` over a vessel's tilted deck (:func:`range_to_deck`): the pad centre
+        ``p_WP``, the deck's orientation ``R_WP`` and its extent on its own axes ``extent_P`` (4,)."""
+        r = true_range_to_deck(_f64(p_WB), _f64(q_WB), self._origin_B, _f64(p_WP), _f64(R_WP), _f64(extent_P))
         noise = float(self._stream.row()[0]) * self.config.noise_std_m
         if r > self.config.max_range_m:
             return math.inf
@@ -609,6 +679,34 @@ class OpticalFlowSensor:
         half = 0.5 * pad_size_m
         on_pad = abs(r[2]) < 1e-6 and abs(c * r[0] + s * r[1]) <= half and abs(-s * r[0] + c * r[1]) <= half
         v_surface_W = v_WP + yaw_rate * np.array([-r[1], r[0], 0.0]) if on_pad else np.zeros(3)
+        v_sensor_W = v_WB + R_WB @ np.cross(w_B, self._origin_B)
+        v_rel_B = R_WB.T @ (v_sensor_W - v_surface_W)
+        flow = np.array([-v_rel_B[0] / d + w_B[1], -v_rel_B[1] / d - w_B[0]])
+        flow += cfg.noise_rad_s * noise[:2]
+        return FlowSample(float(t), flow, max(d + cfg.range_noise_m * float(noise[2]), 0.0))
+
+    def measure_on_deck(
+        self,
+        t: float,
+        x_B: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+        deck: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    ) -> FlowSample | None:
+        """As :meth:`measure_at` over a vessel's tilted, moving deck ``(p_WP, v_WP, R_WP, w_WP_W,
+        extent_P)``: the distance to the deck's plane (:func:`range_to_deck`), and where the ray meets
+        the deck the surface's velocity ``v_WP + w x (hit - p_WP)``, else the sea's (still)."""
+        p_WB, v_WB, q_WB, w_B = (_f64(a) for a in x_B)
+        p_WP, v_WP, R_WP, w_WP, extent = (_f64(a) for a in deck)
+        noise = self._stream.row()
+        cfg = self.config
+        d = true_range_to_deck(p_WB, q_WB, self._origin_B, p_WP, R_WP, extent)
+        if not (cfg.min_range_m <= d <= cfg.max_range_m):
+            return None
+        R_WB = quat_to_rotmat(q_WB)
+        o_W = p_WB + R_WB @ self._origin_B
+        hit_W = o_W - d * R_WB[:, 2]
+        r = hit_W - p_WP
+        on_deck = abs(float(r @ R_WP[:, 2])) < 1e-6
+        v_surface_W = v_WP + np.cross(w_WP, r) if on_deck else np.zeros(3)
         v_sensor_W = v_WB + R_WB @ np.cross(w_B, self._origin_B)
         v_rel_B = R_WB.T @ (v_sensor_W - v_surface_W)
         flow = np.array([-v_rel_B[0] / d + w_B[1], -v_rel_B[1] / d - w_B[0]])

@@ -11,6 +11,11 @@ crashes). The surface under the vehicle is the pad when the gear's footprint ove
 centre is inside the pad square grown by ``gear_half_width`` (the footprint is taken as aligned with the
 pad), and the ground otherwise. Touching the pad from the side (feet below the pad height while over
 it) counts as a platform contact too.
+
+On a vessel at sea (``deck`` given: a :class:`~alight.sim.sea.world_deck.DeckPose`) the judge works in
+the deck's frame P: the footprint test on the deck's own axes, the speed relative to the deck's material
+point under the vehicle along the deck's normal (the "vertical" limit) and across it (the "horizontal"
+limit), the vehicle's tilt relative to the deck's normal; the deck's own tilt is reported with them.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np
 from alight.types import FloatArray, Outcome
 
 from .platform import PlatformTruth, pad_contains
+from .sea.world_deck import DeckPose
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -70,6 +76,24 @@ class Contact:
     """The platform's horizontal speed at the contact (m/s), whatever was touched."""
     platform_turn_rate_rad_s: float = 0.0
     """The platform's heading rate at the contact (rad/s, counter-clockwise)."""
+    deck: DeckFigures | None = None
+    """On a vessel's deck at sea: the contact in the deck's frame (None on level ground)."""
+
+
+@dataclass(frozen=True, slots=True)
+class DeckFigures:
+    """A contact in the frame of a tilted, moving deck."""
+
+    touchdown_error_m: float | None
+    """Distance from the pad centre in the deck's plane (m); None off the deck."""
+    normal_speed_mps: float | None
+    """|speed| relative to the deck's material point under the vehicle, along the deck's normal (m/s)."""
+    tangential_speed_mps: float | None
+    """The same relative speed, across the normal (in the deck's plane) (m/s)."""
+    relative_tilt_rad: float | None
+    """Angle between the body z axis and the deck's normal (rad)."""
+    deck_tilt_rad: float
+    """The deck's own tilt from the horizontal (rad)."""
 
 
 def judge_contact(
@@ -83,6 +107,7 @@ def judge_contact(
     *,
     surface: str | None = None,
     ground_ok: bool = False,
+    deck: DeckPose | None = None,
 ) -> Contact | None:
     """The contact at this instant, or None while the feet are above the surface below.
 
@@ -96,8 +121,13 @@ def judge_contact(
     ``surface``: ``pad`` or ``ground`` when the caller knows what the feet touch (the simulator's
     contact model reports it; a tilted vehicle's foot touches before its centre's gear height does):
     that surface is judged without the geometric test. ``ground_ok``: a ground contact is judged on its
-    speeds and tilt, not a crash by itself (the landing of an abort's final action).
+    speeds and tilt, not a crash by itself (the landing of an abort's final action). ``deck``: the deck
+    of a vessel at sea (module docstring); ``surface`` is then required.
     """
+    if deck is not None:
+        if surface is None:
+            raise ValueError("a contact on a deck at sea is judged with its surface given")
+        return _judge_on_deck(p_WB, v_WB, R_WB, deck, pad_size_m, limits, surface, ground_ok)
     feet_z = float(p_WB[2]) - gear_height
     p_xy = np.asarray(p_WB[:2], dtype=np.float64)
     if surface is None:
@@ -186,5 +216,115 @@ def judge_settled(
             pad_size_m,
             limits.gear_half_width,
         ):
+            reasons.append("off_footprint")
+    return (Outcome.CRASHED if reasons else Outcome.LANDED), ",".join(reasons)
+
+
+def deck_figures(p_WB: FloatArray, v_WB: FloatArray, R_WB: FloatArray, deck: DeckPose) -> DeckFigures:
+    """The vehicle at ``p_WB``, ``v_WB``, ``R_WB`` in the frame of ``deck`` (its contact figures)."""
+    n = deck.R_WP[:, 2]
+    local = deck.local(p_WB)
+    v_rel = np.asarray(v_WB, dtype=np.float64) - deck.surface_velocity(p_WB)
+    vn = float(v_rel @ n)
+    vt = float(np.linalg.norm(v_rel - vn * n))
+    rel_tilt = math.acos(min(1.0, max(-1.0, float(np.asarray(R_WB)[:, 2] @ n))))
+    return DeckFigures(
+        touchdown_error_m=math.hypot(float(local[0]), float(local[1])),
+        normal_speed_mps=abs(vn),
+        tangential_speed_mps=vt,
+        relative_tilt_rad=rel_tilt,
+        deck_tilt_rad=math.acos(min(1.0, max(-1.0, float(deck.R_WP[2, 2])))),
+    )
+
+
+def _on_pad(local_P: FloatArray, pad_size_m: float, inset_m: float) -> bool:
+    half = 0.5 * pad_size_m - inset_m
+    return abs(float(local_P[0])) <= half and abs(float(local_P[1])) <= half
+
+
+def _judge_on_deck(
+    p_WB: FloatArray,
+    v_WB: FloatArray,
+    R_WB: FloatArray,
+    deck: DeckPose,
+    pad_size_m: float,
+    limits: ContactLimits,
+    surface: str,
+    ground_ok: bool,
+) -> Contact:
+    """:func:`judge_contact` on a vessel's deck (module docstring): the limits in the deck's frame."""
+    R_WB = np.asarray(R_WB, dtype=np.float64)
+    tilt = math.acos(min(1.0, max(-1.0, float(R_WB[2, 2]))))
+    err = math.hypot(float(p_WB[0] - deck.p_WP[0]), float(p_WB[1] - deck.p_WP[1]))
+    reasons = []
+    if surface == "pad":
+        fig = deck_figures(p_WB, v_WB, R_WB, deck)
+        v_rel = np.asarray(v_WB, dtype=np.float64) - deck.surface_velocity(p_WB)
+        checked = (fig.normal_speed_mps, fig.tangential_speed_mps, fig.relative_tilt_rad)
+        if not _on_pad(deck.local(p_WB), pad_size_m, limits.gear_half_width):
+            reasons.append("off_footprint")
+    else:
+        deck_tilt = math.acos(min(1.0, max(-1.0, float(deck.R_WP[2, 2]))))
+        fig = DeckFigures(None, None, None, None, deck_tilt)
+        v_rel = np.asarray(v_WB, dtype=np.float64)
+        checked = (abs(float(v_rel[2])), math.hypot(float(v_rel[0]), float(v_rel[1])), tilt)
+        if not ground_ok:
+            reasons.append("ground")
+    vn, vt, rel_tilt = checked
+    if not reasons or reasons == ["off_footprint"]:
+        if vn is not None and vn > limits.max_vertical_speed_mps:
+            reasons.append("vertical_speed")
+        if vt is not None and vt > limits.max_horizontal_speed_mps:
+            reasons.append("horizontal_speed")
+        if rel_tilt is not None and rel_tilt > math.radians(limits.max_tilt_deg):
+            reasons.append("tilt")
+    vz = abs(float(v_rel[2]))
+    vh = math.hypot(float(v_rel[0]), float(v_rel[1]))
+    return Contact(
+        outcome=Outcome.CRASHED if reasons else Outcome.LANDED,
+        surface=surface,
+        reason=",".join(reasons),
+        touchdown_error_m=err,
+        rel_vertical_speed_mps=vz,
+        rel_horizontal_speed_mps=vh,
+        rel_speed_mps=math.sqrt(vz * vz + vh * vh),
+        tilt_rad=tilt,
+        platform_speed_mps=math.hypot(float(deck.v_WP[0]), float(deck.v_WP[1])),
+        # the deck's yaw rate: its body rate about the vertical
+        platform_turn_rate_rad_s=float(deck.w_WP_W[2]),
+        deck=fig,
+    )
+
+
+def judge_settled_on_deck(
+    p_WB: FloatArray,
+    R_WB: FloatArray,
+    deck: DeckPose,
+    pad_size_m: float,
+    limits: ContactLimits,
+    feet_on_deck: int,
+    feet_on_ground: int,
+    *,
+    ground_ok: bool = False,
+) -> tuple[Outcome, str]:
+    """:func:`judge_settled` on a vessel's deck: still standing on the pad means the feet on the deck,
+    none in the water, the centre inside the footprint on the deck's axes and the tilt relative to the
+    deck's normal within the limit; a vehicle that slid off the rolling deck is ``CRASHED``."""
+    n = deck.R_WP[:, 2]
+    on_deck = feet_on_deck > 0
+    up = n if on_deck else np.array([0.0, 0.0, 1.0])
+    tilt = math.acos(min(1.0, max(-1.0, float(np.asarray(R_WB)[:, 2] @ up))))
+    reasons = []
+    if tilt > math.radians(limits.max_tilt_deg):
+        reasons.append("tipped_over")
+    if ground_ok:
+        if feet_on_deck + feet_on_ground == 0:
+            reasons.append("not_on_a_surface")
+    else:
+        if feet_on_ground > 0:
+            reasons.append("ground")
+        if not on_deck:
+            reasons.append("not_on_pad")
+        elif not _on_pad(deck.local(p_WB), pad_size_m, limits.gear_half_width):
             reasons.append("off_footprint")
     return (Outcome.CRASHED if reasons else Outcome.LANDED), ",".join(reasons)

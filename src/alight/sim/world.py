@@ -26,6 +26,7 @@ before they existed.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import typing
 from collections import deque
@@ -71,6 +72,7 @@ from alight.sim.quadrotor import (
     pack_params,
 )
 from alight.sim.render import Renderer, RenderOptions
+from alight.sim.sea.world_deck import DeckPose, MruMessage, MruStream, SeaDeck, deck_extent
 from alight.sim.sensors import (
     FlowSample,
     Imu,
@@ -84,7 +86,7 @@ from alight.sim.sensors import (
 )
 from alight.sim.telemetry import PlatformTelemetry, TelemetryFix
 from alight.sim.textures import make_ground_texture
-from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled
+from alight.sim.touchdown import Contact, ContactLimits, judge_contact, judge_settled, judge_settled_on_deck
 from alight.sim.truth_perception import TruthPerception, TruthPerceptionConfig
 from alight.sim.wind import (
     TURBULENCE_W20_MPS,
@@ -103,11 +105,12 @@ CONTROL_DT = 0.01  # the command ticks: a physics batch ends at each
 WIND_DT = 0.01  # the wind is updated where the physics batches start: at the 100 Hz control ticks
 LIFT_OFF_M = 0.005  # feet this far above the surface they touched, touching nothing: a lift-off (bounce)
 
-SEED_CHILDREN = 11
+SEED_CHILDREN = 13
 """Children of the scenario seed, by index: 0 platform placement, 1 rendering, 2 wind, 3 IMU,
 4 odometry, 5 range finder, 6 ground-truth perception, 7 the pipeline's own draws, 8 faults,
-9 platform telemetry, 10 optical flow. ``spawn(10)[:9]`` equals ``spawn(9)``: a component added at the
-end leaves every other component's random numbers as they were."""
+9 platform telemetry, 10 optical flow, 11 the sea, 12 the vessel's motion telemetry (MRU).
+``spawn(10)[:9]`` equals ``spawn(9)``: a component added at the end leaves every other component's random
+numbers as they were."""
 SEED_PIPELINE = 7
 
 
@@ -214,6 +217,8 @@ class Shot:
     w_WB_B: np.ndarray
     fate: FrameFate
     noise_offset: tuple[int, int] | None
+    R_WP: np.ndarray | None = None
+    """The deck's orientation on a vessel at sea (None: level, turned by ``yaw``)."""
 
 
 Frame = Shot | list[Observation]
@@ -286,7 +291,7 @@ class World:
         self._init_perception(preset, rng_perc, seeds[8])
         self._init_platform_and_flow_sensors(seeds[9], seeds[10])
         self._init_camera(preset, rng_render)
-        self._init_physics(preset)
+        self._init_physics(preset, seeds)
         self._init_flight()
 
     def _init_sensors(
@@ -392,15 +397,17 @@ class World:
                 preset.camera,
                 ground,
                 preset.pad,
-                RenderOptions(
-                    noise_sigma_dn=cs.noise_dn,
-                    exposure_time_s=cs.exposure_s,
-                    exposure_gain=cs.exposure_gain,
-                    gamma=cs.gamma,
-                    color=color,
-                    illumination_gain_bgr=cs.illumination_gain_bgr,
-                    brightness_drift=cs.brightness_drift,
-                    brightness_drift_period_s=cs.brightness_drift_period_s,
+                self._sea_deck_texture(
+                    RenderOptions(
+                        noise_sigma_dn=cs.noise_dn,
+                        exposure_time_s=cs.exposure_s,
+                        exposure_gain=cs.exposure_gain,
+                        gamma=cs.gamma,
+                        color=color,
+                        illumination_gain_bgr=cs.illumination_gain_bgr,
+                        brightness_drift=cs.brightness_drift,
+                        brightness_drift_period_s=cs.brightness_drift_period_s,
+                    )
                 ),
                 rng_render,
                 R_BC=preset.mount.R_BC,
@@ -409,8 +416,21 @@ class World:
         self.next_capture_s = 0.0
         self._pending: deque[tuple[float, float, Frame]] = deque()  # (delivery, capture time, frame)
 
-    def _init_physics(self, preset: VehicleSetup) -> None:
-        """The compiled loop's parameters and inputs, the vehicle at rest, and the platform's path."""
+    def _sea_deck_texture(self, options: RenderOptions) -> RenderOptions:
+        """On a vessel at sea the camera sees the deck's extent around the pad (``deck_extent``), at a
+        texture resolution that keeps its finest level within 4096 texels a side."""
+        s = self.scenario
+        if s.platform.sea is None:
+            return options
+        x0, x1, y0, y1 = deck_extent(s.platform.sea, 0.5 * s.platform.pad_size_m)
+        length, width = x1 - x0, y1 - y0
+        px = min(options.pad_px_per_m, 4096.0 / max(length, width))
+        return dataclasses.replace(options, deck_length_m=length, deck_width_m=width, pad_px_per_m=px)
+
+    def _init_physics(self, preset: VehicleSetup, seeds: list[np.random.SeedSequence]) -> None:
+        """The compiled loop's parameters and inputs, the vehicle at rest, and the platform's path (on a
+        vessel at sea with ``platform.sea``: the sea's and the motion telemetry's seeds are children 11
+        and 12)."""
         s, airframe = self.scenario, self.airframe
         self.sim_params = pack_params(airframe)
         self.ll_params = pack_low_level_params(airframe, preset.rate_gains)
@@ -428,10 +448,27 @@ class World:
         self.n_ticks = int(round(s.duration_s / TICK_DT))
         # The platform's path does not depend on the flight: its states at every tick, computed at once.
         self.truths = self.platform.states(np.arange(self.n_ticks + 1, dtype=np.float64) * TICK_DT)
+        self.sea: SeaDeck | None = None
+        """The vessel's deck at sea (None: a ground vehicle on level ground)."""
+        self.mru: MruStream | None = None
+        sea = s.platform.sea
+        if sea is not None:
+            self.sea = SeaDeck(
+                sea, np.random.default_rng(seeds[11]), s.platform.speed_mps, self.truths, TICK_DT,
+                0.5 * s.platform.pad_size_m,
+            )  # fmt: skip
+            self.truths = self.sea.truths
+            self._deck_rows = self.sea.deck_rows(0.5 * s.platform.pad_size_m)
+            self._extent_P = np.array(self.sea.extent_P)
+            if sea.motion_telemetry is not None:
+                self.mru = MruStream(sea.motion_telemetry, np.random.default_rng(seeds[12]))
+            return
         # ... and the deck inputs of a physics batch starting at each tick (layout DK_*), packed once:
         # one row copy per batch instead of five small slice assignments.
         tr = self.truths
-        self._deck_rows = deck_rows = np.empty((self.n_ticks + 1, N_DK))
+        self._deck_rows = deck_rows = np.zeros(
+            (self.n_ticks + 1, N_DK)
+        )  # a level deck: DK_TILTED and after 0
         deck_rows[:, DK_ON] = 1.0
         deck_rows[:, DK_HALF] = 0.5 * s.platform.pad_size_m
         deck_rows[:, DK_P : DK_P + 3] = tr.p_WP
@@ -456,12 +493,15 @@ class World:
         self.aborting = False
         self.touching = False  # a foot touches the deck or the ground (after take-off)
         self.touch_z = 0.0  # height of the surface it touches (m)
+        self.touch_deck = False  # ... a vessel's deck at sea, which moves: its height is taken each tick
         self.bounces = 0
         self.on_deck = 0
         self.on_ground = 0
         # the lowest a foot can be below the body origin (tilted 25 deg with the feet 0.2 m out), plus 1 cm
         reach = self.airframe.gear_height + s.contact.gear_half_width_m * 0.5 + 0.01
         self.low_z = s.platform.pad_height_m + reach
+        if self.sea is not None:
+            self.low_z = max(self.sea.highest_point_m(), 0.0) + reach
         self.f_wind: FloatArray = np.zeros(3)
         self.last_range_m = math.inf  # the latest reading as the sensor reported it (faults applied)
         self._batch_xs = self._batch_imu = np.empty((0, 0))
@@ -512,6 +552,22 @@ class World:
             "time_motors_off_s": self.t_motors_off,
             "bounces": self.bounces,
             "time_to_land_s": self.t_contact if outcome is Outcome.LANDED else None,
+            **({} if self.sea is None else self._deck_verdict()),
+        }
+
+    def _deck_verdict(self) -> dict[str, Any]:
+        """On a vessel at sea: the first contact in the deck's frame (``evaluation/result.py``)."""
+        fig = None if self.contact is None else self.contact.deck
+
+        def deg(a: float | None) -> float | None:
+            return None if a is None else math.degrees(a)
+
+        return {
+            "deck_touchdown_error_m": None if fig is None else fig.touchdown_error_m,
+            "deck_normal_speed_mps": None if fig is None else fig.normal_speed_mps,
+            "deck_tangential_speed_mps": None if fig is None else fig.tangential_speed_mps,
+            "deck_relative_tilt_deg": None if fig is None else deg(fig.relative_tilt_rad),
+            "deck_tilt_deg": None if fig is None else deg(fig.deck_tilt_rad),
         }
 
     def end(self, outcome: Outcome, reason: str = "") -> None:
@@ -566,10 +622,16 @@ class World:
             if self.outcome is not None:
                 return sample
         if self.t_motors_off is not None and t - self.t_motors_off >= self.scenario.contact.settle_s:
-            settled, self.outcome_reason = judge_settled(
-                x[SL_P], quat_to_rotmat(x[SL_Q]), self.truths.at(k), self.scenario.platform.pad_size_m,
-                self.limits, on_deck, on_ground, ground_ok=self.ground_ok,
-            )  # fmt: skip
+            if self.sea is None:
+                settled, self.outcome_reason = judge_settled(
+                    x[SL_P], quat_to_rotmat(x[SL_Q]), self.truths.at(k), self.scenario.platform.pad_size_m,
+                    self.limits, on_deck, on_ground, ground_ok=self.ground_ok,
+                )  # fmt: skip
+            else:
+                settled, self.outcome_reason = judge_settled_on_deck(
+                    x[SL_P], quat_to_rotmat(x[SL_Q]), self.sea.pose(k), self.scenario.platform.pad_size_m,
+                    self.limits, on_deck, on_ground, ground_ok=self.ground_ok,
+                )  # fmt: skip
             if settled is Outcome.CRASHED:
                 self.outcome = Outcome.CRASHED
             else:
@@ -589,10 +651,11 @@ class World:
                 truth = self.truths.at(k)
                 self.touching = True
                 self.touch_z = 0.0 if surface == "ground" else float(truth.p_WP[2])
+                self.touch_deck = surface == "pad" and self.sea is not None
                 judged = judge_contact(
                     p_WB, self.x_prev[SL_V], quat_to_rotmat(self.x_prev[SL_Q]), truth,
                     self.scenario.platform.pad_size_m, gear, self.limits, surface=surface,
-                    ground_ok=self.ground_ok,
+                    ground_ok=self.ground_ok, deck=None if self.sea is None else self.sea.pose(k),
                 )  # fmt: skip
                 if judged is not None:
                     if self.contact is None:
@@ -603,9 +666,16 @@ class World:
                             self.outcome_reason = f"after a bounce: {judged.reason}"
             elif on_ground and not self.ground_ok:
                 self.outcome, self.outcome_reason = Outcome.CRASHED, "ground"  # slid or tipped off the deck
-        elif p_WB[2] - gear - self.touch_z > LIFT_OFF_M:
+        elif p_WB[2] - gear - self._touched_z(k, p_WB) > LIFT_OFF_M:
             self.touching = False
             self.bounces += 1
+
+    def _touched_z(self, k: int, p_WB: FloatArray) -> float:
+        # the height of the surface the feet touched: a deck at sea heaves, so its plane's height under
+        # the vehicle now
+        if self.touch_deck and self.sea is not None:
+            return self.sea.surface_z(k, p_WB)
+        return self.touch_z
 
     # -- sensors -----------------------------------------------------------------------------------------
     def odometry_message(self) -> EgoState | None:
@@ -618,10 +688,15 @@ class World:
         beyond its range or without a return, REP 117; range faults applied). Draws from the sensor's
         noise."""
         k = self.k
-        r = self.rangefinder.measure_at(
-            self.x[SL_P], self.x[SL_Q], self.truths.p_WP[k], float(self.truths.yaw[k]),
-            self.scenario.platform.pad_size_m,
-        )  # fmt: skip
+        if self.sea is not None:
+            r = self.rangefinder.measure_on_deck(
+                self.x[SL_P], self.x[SL_Q], self.truths.p_WP[k], self.sea.pad.R_WP[k], self._extent_P
+            )
+        else:
+            r = self.rangefinder.measure_at(
+                self.x[SL_P], self.x[SL_Q], self.truths.p_WP[k], float(self.truths.yaw[k]),
+                self.scenario.platform.pad_size_m,
+            )  # fmt: skip
         self.last_range_m = self.faults.range(self.t, r)
         return self.last_range_m
 
@@ -631,6 +706,10 @@ class World:
         if self.optical_flow is None:
             return None
         k, x, tr = self.k, self.x, self.truths
+        if self.sea is not None:
+            deck = (tr.p_WP[k], tr.v_WP[k], self.sea.pad.R_WP[k], self.sea.pad.w_WP_W[k], self._extent_P)
+            on_deck = self.optical_flow.measure_on_deck(self.t, (x[SL_P], x[SL_V], x[SL_Q], x[SL_W]), deck)
+            return on_deck if self.faults.flow_delivered(self.t) else None
         sample = self.optical_flow.measure_at(
             self.t,
             (x[SL_P], x[SL_V], x[SL_Q], x[SL_W]),
@@ -638,6 +717,19 @@ class World:
             self.scenario.platform.pad_size_m,
         )
         return sample if self.faults.flow_delivered(self.t) else None
+
+    def motion_telemetry_arrivals(self) -> tuple[MruMessage, ...]:
+        """The vessel's MRU messages that reach the aircraft now (``platform.sea.motion_telemetry``; none
+        without it): the deck's roll and pitch and the pad's heave rate, sampled from the truth at the
+        MRU's rate, delivered after its latency, with its noise."""
+        if self.mru is None or self.sea is None:
+            return ()
+        k = self.k
+        return self.mru.arrivals(self.t, self.sea.pad.R_WP[k], float(self.truths.v_WP[k][2]))
+
+    def deck_pose(self) -> DeckPose | None:
+        """The deck of a vessel at sea now (ground truth, for the judge and the logs; None on land)."""
+        return None if self.sea is None else self.sea.pose(self.k)
 
     def telemetry_arrivals(self) -> tuple[TelemetryFix, ...]:
         """The platform's GNSS fixes that reach the aircraft now (stamped with the time of the fix): a fix
@@ -676,7 +768,8 @@ class World:
             p_WC, R_WC = camera_pose_W(p_WB, R_WB, self.mount)
             fate = faults.fate(t)
             shot = Shot(p_WC, R_WC, p_WP, float(self.truths.yaw[k]), x[SL_W].copy(), fate,
-                        self.renderer.draw_noise_offset())  # fmt: skip
+                        self.renderer.draw_noise_offset(),
+                        None if self.sea is None else self.sea.pad.R_WP[k])  # fmt: skip
             if not fate.dropped:
                 self._pending.append((faults.delivery_time(t), t, shot))
         else:
@@ -715,6 +808,7 @@ class World:
             shot.w_WB_B,
             t_s=t_cap,
             noise_offset=shot.noise_offset,
+            R_WP=shot.R_WP,
         )
         out = self.faults.deliver(shot.fate, img)
         assert out is not None
