@@ -96,6 +96,18 @@ class DeckFigures:
     """The deck's own tilt from the horizontal (rad)."""
 
 
+def _surface_under_feet(
+    p_xy: FloatArray, feet_z: float, platform: PlatformTruth, pad_size_m: float, limits: ContactLimits
+) -> str | None:
+    """``pad`` or ``ground`` when the feet at height ``feet_z`` (m) reach that surface, else None."""
+    over_platform = bool(pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, -limits.gear_half_width))
+    if over_platform and feet_z <= float(platform.p_WP[2]):
+        return "pad"
+    if feet_z <= 0.0:
+        return "ground"
+    return None
+
+
 def judge_contact(
     p_WB: FloatArray,
     v_WB: FloatArray,
@@ -128,19 +140,13 @@ def judge_contact(
         if surface is None:
             raise ValueError("a contact on a deck at sea is judged with its surface given")
         return _judge_on_deck(p_WB, v_WB, R_WB, deck, pad_size_m, limits, surface, ground_ok)
-    feet_z = float(p_WB[2]) - gear_height
     p_xy = np.asarray(p_WB[:2], dtype=np.float64)
     if surface is None:
+        feet_z = float(p_WB[2]) - gear_height
         if feet_z > platform.p_WP[2] and feet_z > 0.0:
             return None  # the common case, kept cheap: above every surface
-        over_platform = bool(
-            pad_contains(p_xy, platform.p_WP, platform.yaw, pad_size_m, -limits.gear_half_width)
-        )
-        if over_platform and feet_z <= float(platform.p_WP[2]):
-            surface = "pad"
-        elif feet_z <= 0.0:
-            surface = "ground"
-        else:
+        surface = _surface_under_feet(p_xy, feet_z, platform, pad_size_m, limits)
+        if surface is None:
             return None
     if surface == "pad":
         v_rel = np.asarray(v_WB, dtype=np.float64) - platform.v_WP
