@@ -132,7 +132,9 @@ def test_odometry_drift_is_a_rotated_and_offset_frame():
         psi, b = odo.drift_yaw, odo.drift_p.copy()
         odo.measure(k / cfg.rate_hz, p, v, q, Z3)
         yaw_steps.append(odo.drift_yaw - psi)
-        p_steps.append(odo.drift_p - b)
+        # the offset's own random walk: its step less what it took up of the heading's step
+        taken_up = Rotation.from_euler("z", psi).apply(p) - Rotation.from_euler("z", odo.drift_yaw).apply(p)
+        p_steps.append(odo.drift_p - b - taken_up)
     sq_dt = 1.0 / math.sqrt(cfg.rate_hz)
     assert np.std(yaw_steps) == pytest.approx(cfg.yaw_drift_density * sq_dt, rel=0.05)
     np.testing.assert_allclose(np.std(p_steps, axis=0), cfg.position_drift_density * sq_dt, rtol=0.05)
@@ -210,3 +212,28 @@ def test_noise_stream_peek_and_skip_give_the_same_numbers_as_rows() -> None:
         got.extend(peeked[:use])
     np.testing.assert_array_equal(np.array(got), rows[: len(got)])
     np.testing.assert_array_equal(b.take(0), np.empty((0, 4)))
+
+
+def test_odometry_heading_drift_turns_the_motion_not_the_path_flown():
+    """Far from take-off (1 km) at 18 m/s, the heading drift must not make the position jump: one
+    sample's position step is the true step turned by the drift (|dp| psi, millimetres), where rotating
+    the whole path about W's origin jumped it by |p| dpsi (0.08 m std per sample at 40 Hz)."""
+    cfg = OdometryConfig(
+        position_noise_m=0.0,
+        velocity_noise_mps=0.0,
+        attitude_noise_rad=0.0,
+        rate_noise_radps=0.0,
+        position_drift_density=0.0,
+        yaw_drift_density=5.0e-4,
+    )
+    odo = Odometry(cfg, np.random.default_rng(9))
+    v = np.array([18.0, 0.0, 0.0])
+    p0 = np.array([1000.0, 0.0, 3.0])
+    q = Rotation.from_euler("z", 0.0).as_quat()
+    dt = 1.0 / cfg.rate_hz
+    outs = [odo.measure(k * dt, p0 + v * k * dt, v, q, Z3) for k in range(2000)]
+    ps = np.array([o.p_WB for o in outs])
+    vs = np.array([o.v_WB for o in outs])
+    # each step is the odometry's own velocity times dt (the velocity is turned by the same heading)
+    np.testing.assert_allclose(np.diff(ps, axis=0), vs[1:] * dt, atol=1e-6)
+    assert abs(odo.drift_yaw) > 1e-3  # the heading did drift

@@ -318,6 +318,13 @@ def _odometry_sample(
         out[10 + j] = w[j] + scale[9 + j] * n[9 + j]
     for j in range(4):
         drift[j] += scale[12 + j] * n[12 + j]
+    # The heading's step turns the motion from now on, not the path already flown: the offset takes up
+    # (R_z(psi_old) - R_z(psi_new)) p, so the position stays continuous and consistent with the velocity.
+    # Rotating the whole path about W's origin instead would jump the position by |p| dpsi per sample,
+    # across the track and without a matching velocity (0.1-0.5 m at 500 m from take-off).
+    c1, s1 = math.cos(drift[3]), math.sin(drift[3])
+    drift[0] += (c - c1) * p[0] - (s - s1) * p[1]
+    drift[1] += (s - s1) * p[0] + (c - c1) * p[1]
     return out
 
 
@@ -359,7 +366,9 @@ class Odometry:
     """VIO-like ego state: the truth seen from an odometry frame that drifts away from W.
 
     The drift is a heading ``psi_d`` and an offset ``b_p``, both random walks (VIO is unobservable in
-    position and yaw, so those drift; roll and pitch stay anchored by gravity)::
+    position and yaw, so those drift; roll and pitch stay anchored by gravity). A step of the heading
+    turns the motion from then on, as a VIO's heading error does, not the path already flown: the offset
+    takes up ``(R_z(psi_old) - R_z(psi_new)) p_WB`` at each step, so the position is continuous::
 
         p = R_z(psi_d) p_WB + b_p + n_p,   v = R_z(psi_d) v_WB + n_v,
         q = q_z(psi_d) (x) q_WB (x) exp(n_theta / 2),   w = w_WB_B + n_w
