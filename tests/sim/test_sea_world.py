@@ -121,6 +121,12 @@ def test_bad_sea_keys_are_refused_in_one_line(sea, needle):
     assert str(info.value).startswith("s.yaml: platform.sea")
 
 
+def test_a_pad_height_at_sea_is_refused():
+    with pytest.raises(ConfigError, match="pad_height_m has no effect with platform.sea") as info:
+        scenario_from_dict({"platform": {"pad_height_m": 1.0, "sea": {"sea_state": 3}}}, "s.yaml")
+    assert "\n" not in str(info.value)
+
+
 # -- contact with a tilted, moving deck ------------------------------------------------------------------
 
 
