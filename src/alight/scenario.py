@@ -174,6 +174,18 @@ class PlatformSpec(_Strict):
         except ConfigError as err:
             raise ValueError(str(err).removeprefix("platform.sea: ").removeprefix("platform.sea.")) from None
 
+    @model_validator(mode="after")
+    def _no_pad_height_at_sea(self) -> PlatformSpec:
+        # at sea the pad's height is the vessel's pad offset above the waterline: a pad_height_m set with
+        # a sea would silently do nothing (the default passes: a dumped scenario writes it)
+        default = PlatformSpec.model_fields["pad_height_m"].default
+        if self.sea is not None and self.pad_height_m != default:
+            raise ValueError(
+                "pad_height_m has no effect with platform.sea: the pad's height is the vessel's "
+                "(platform.sea.pad_offset_m, above the waterline)"
+            )
+        return self
+
     @model_serializer(mode="wrap")
     def _no_sea_key_on_land(self, handler: Any) -> Any:
         # a platform on land writes no ``sea`` key: the scenario (and result.json) of every mission

@@ -121,6 +121,33 @@ def test_bad_sea_keys_are_refused_in_one_line(sea, needle):
     assert str(info.value).startswith("s.yaml: platform.sea")
 
 
+def test_a_pad_height_at_sea_is_refused():
+    with pytest.raises(ConfigError, match="pad_height_m has no effect with platform.sea") as info:
+        scenario_from_dict({"platform": {"pad_height_m": 1.0, "sea": {"sea_state": 3}}}, "s.yaml")
+    assert "\n" not in str(info.value)
+
+
+def test_in_still_water_the_pad_follows_the_platform_path_exactly():
+    # the centre of motion rides Rz(yaw) r_xy behind the pad (the frigate's pad is 55 m aft): on a
+    # circle the pad's position, velocity and acceleration are the path's, the centre's turn included
+    from alight.sim.platform import Platform, PlatformConfig
+    from alight.sim.sea.world_deck import SeaDeck
+
+    platform = Platform(
+        PlatformConfig(path="circle", speed_mps=3.0, circle_radius_m=40.0), np.random.default_rng(0)
+    )
+    t = np.arange(0.0, 20.0, 0.005)
+    path = platform.states(t)
+    deck = SeaDeck(SeaConfig(sea_state=0, vessel="frigate"), np.random.default_rng(1), 3.0, path, 0.005, 0.75)
+    r = deck.motion.r_B
+    np.testing.assert_allclose(deck.pad.p_WP[:, :2], path.p_WP[:, :2], atol=1e-9)
+    np.testing.assert_allclose(deck.pad.p_WP[:, 2], r[2], atol=1e-12)
+    np.testing.assert_allclose(deck.pad.v_WP, path.v_WP, atol=1e-6)
+    np.testing.assert_allclose(deck.pad.a_WP[5:-5], path.a_WP[5:-5], atol=1e-4)  # central difference of yaw'
+    centre = path.p_WP[:, :2] - deck.pad.R_WP[:, :2, :2] @ r[:2]
+    assert np.min(np.linalg.norm(centre - path.p_WP[:, :2], axis=1)) == pytest.approx(55.0, abs=1e-9)
+
+
 # -- contact with a tilted, moving deck ------------------------------------------------------------------
 
 

@@ -2,9 +2,11 @@
 
 The World (``sim/world.py``) keeps the platform's true states at every 200 Hz tick in one table; with a
 ``platform.sea`` section, :class:`SeaDeck` replaces that table by the pad's exact kinematics on the vessel
-(:meth:`alight.sim.sea.deck.DeckMotion.pad`): the vessel's centre of motion follows the platform's path
-at the waterline (the world's z = 0, the sea's mean level; the path's own height is not used) and the
-sea adds heave, roll, pitch, surge, sway and yaw. It also holds what the flat world did not need: the
+(:meth:`alight.sim.sea.deck.DeckMotion.pad`): the vessel follows the platform's path and speed profile
+with its pad's mean position on the path (:func:`centre_path`: the pad is where the mission expects the
+platform, as on land, also 55 m aft on a frigate), its centre of motion at the waterline (the world's
+z = 0, the sea's mean level; the path's own height is not used), and the sea adds heave, roll, pitch,
+surge, sway and yaw. It also holds what the flat world did not need: the
 deck's orientation R_WP and angular velocity at every tick, the deck's extent (the plane of the pad over
 the hull's footprint), the deck rows of the physics kernel, and the vessel's motion reference unit (MRU)
 broadcast.
@@ -96,6 +98,27 @@ def deck_extent(config: SeaConfig, pad_half_m: float) -> tuple[float, float, flo
     return (-hx, hx, -hy, hy)
 
 
+def centre_path(path: PlatformStates, yaw_accel: FloatArray, r_B: FloatArray) -> VesselPath:
+    """The vessel's centre of motion for a pad whose mean position follows ``path``: in still water the
+    pad (at ``r_B``, FLU from the centre) is exactly on the platform's path, as a pad on land is, and the
+    centre is at the waterline, ``Rz(yaw) r_xy`` behind it. With ``u = Rz(yaw) r_xy``, ``u' = yaw' J u``
+    and ``u'' = yaw'' J u - yaw'^2 u`` (J a quarter turn): p_c = p - u, v_c = v - u', a_c = a - u''."""
+    c, s = np.cos(path.yaw), np.sin(path.yaw)
+    ux, uy = c * r_B[0] - s * r_B[1], s * r_B[0] + c * r_B[1]
+    dy, ddy = path.yaw_rate, yaw_accel
+    p = path.p_WP.copy()
+    v = path.v_WP.copy()
+    a = path.a_WP.copy()
+    p[:, 0] -= ux
+    p[:, 1] -= uy
+    p[:, 2] = 0.0  # the centre of motion at the waterline
+    v[:, 0] += dy * uy
+    v[:, 1] -= dy * ux
+    a[:, 0] -= -ddy * uy - dy * dy * ux
+    a[:, 1] -= ddy * ux - dy * dy * uy
+    return VesselPath(p, v, a, path.yaw, path.yaw_rate, np.asarray(yaw_accel, dtype=np.float64))
+
+
 def deck_attitude(R_WP: FloatArray) -> tuple[float, float]:
     """(roll, pitch) of R_WP = Rz Ry Rx (ZYX; FLU: roll port up, pitch bow down) (rad)."""
     return math.atan2(float(R_WP[2, 1]), float(R_WP[2, 2])), -math.asin(
@@ -165,10 +188,8 @@ class SeaDeck:
                  tick_dt: float, pad_half_m: float) -> None:  # fmt: skip
         self.config = config
         self.motion = DeckMotion.from_config(config, rng, speed_mps)
-        p_path = path.p_WP.copy()
-        p_path[:, 2] = 0.0  # the centre of motion at the waterline
         yaw_accel = np.gradient(path.yaw_rate, tick_dt) if len(path) > 1 else np.zeros(len(path))
-        vessel_path = VesselPath(p_path, path.v_WP, path.a_WP, path.yaw, path.yaw_rate, yaw_accel)
+        vessel_path = centre_path(path, yaw_accel, self.motion.r_B)
         self.pad: PadKinematics = self.motion.pad(path.t, vessel_path)
         R = self.pad.R_WP
         psi = np.arctan2(R[:, 1, 0], R[:, 0, 0])
