@@ -48,14 +48,20 @@ def _on_alarm(signum: int, frame: Any) -> None:
     raise _Hang
 
 
-def _call(fn: Callable[[], Any], limit_s: float) -> tuple[str, Any]:
-    """``("ok", value)``, ``("refused", error)``, ``("crash", error)`` or ``("hang", None)``."""
+def _call(
+    fn: Callable[[], Any],
+    limit_s: float,
+    refused: tuple[type[Exception], ...] = (ImageError, EstimationError),
+) -> tuple[str, Any]:
+    """``("ok", value)``, ``("refused", error)`` for the documented refusals ``refused``, ``("crash",
+    error)`` for any other exception, or ``("hang", None)`` after ``limit_s`` (s; SIGALRM must be
+    handled by :func:`_on_alarm`). The one watchdog of the fuzz harnesses."""
     signal.setitimer(signal.ITIMER_REAL, limit_s)
     try:
         return "ok", fn()
     except _Hang:
         return "hang", None
-    except (ImageError, EstimationError) as err:
+    except refused as err:
         return "refused", err
     except Exception as err:  # the harness counts what a block should never raise
         return "crash", err

@@ -49,7 +49,14 @@ def summary() -> dict[str, Any]:
 
 
 def test_every_estimator_survives_the_short_fuzz(summary: dict[str, Any]) -> None:
-    assert set(summary["estimators"]) == {"kim_ukf", "sdu_kf", "unicycle_ekf", "ego_ekf", "kim_ukf_pixel"}
+    assert set(summary["estimators"]) == {
+        "kim_ukf",
+        "sdu_kf",
+        "unicycle_ekf",
+        "deck_kf",
+        "ego_ekf",
+        "kim_ukf_pixel",
+    }
     for name, block in summary["estimators"].items():
         assert block["cases"] == 100, name
         assert block["refused"] > 50, name  # the bad inputs were refused, not silently taken
