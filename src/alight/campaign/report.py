@@ -53,7 +53,7 @@ from alight.evaluation.log import LOG_NPZ
 from alight.evaluation.plots import DPI, figure_to_png, new_figure
 from alight.evaluation.replay import REPLAY_GIF
 from alight.evaluation.report import _CSS as _MISSION_CSS
-from alight.evaluation.report import BLOCK_COLORS, OUTCOME_COLORS, SIMULATOR_COLOR, format_quantity
+from alight.evaluation.report import BLOCK_COLORS, OUTCOME_COLORS, SIMULATOR_COLOR, format_quantity, page_head
 from alight.types import PIPELINE_BLOCKS
 
 REPORT_HTML = "report.html"
@@ -993,20 +993,7 @@ def _page_head(res: Results, out_dir: Path) -> list[str]:
     """From the doctype to the end of the page's header: title, date, version, swept parameters, links."""
     name = str(_get(res.summary, "campaign") or out_dir.resolve().name)
     title = f"Campaign report \u2014 {name}"
-    head = [
-        "<!DOCTYPE html>",
-        '<html lang="en">',
-        "<head>",
-        '<meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{_esc(title)}</title>",
-        f"<style>{_CSS}</style>",
-        "</head>",
-        "<body>",
-        "<main>",
-        "<header>",
-        f"<h1>{_esc(title)}</h1>",
-    ]
+    head = page_head(title, _CSS)
     sub = []
     for key, label in (("created", "created"), ("alight_version", "alight")):
         v = _get(res.summary, key)

@@ -29,7 +29,7 @@ from alight.evaluation.recorded_plots import (
     plot_recorded_top_view,
 )
 from alight.evaluation.report import _CSS as _MISSION_CSS
-from alight.evaluation.report import REPORT_HTML, _result_table_html, format_quantity
+from alight.evaluation.report import REPORT_HTML, _result_table_html, format_quantity, page_head
 
 RECORDED_BADGE = "#0969da"
 MAX_MESSAGES_SHOWN = 200
@@ -67,18 +67,7 @@ def _header_html(result: Mapping[str, Any], rec: RecordedFlight) -> list[str]:
     if rec.vehicle:
         sub.insert(1, f"vehicle <b>{esc(rec.vehicle)}</b>")
     return [
-        "<!DOCTYPE html>",
-        '<html lang="en">',
-        "<head>",
-        '<meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{esc(title)}</title>",
-        f"<style>{_CSS}</style>",
-        "</head>",
-        "<body>",
-        "<main>",
-        "<header>",
-        f"<h1>{esc(title)}</h1>",
+        *page_head(title, _CSS),
         f'<span class="badge" style="background:{RECORDED_BADGE}">recorded flight</span>',
         f'<p class="sub">{" &middot; ".join(sub)}</p>' if sub else "",
         "</header>",

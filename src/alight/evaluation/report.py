@@ -375,6 +375,26 @@ def _events_line(events: Mapping[str, float | None]) -> str:
     return f'<div class="legend">{" &middot; ".join(parts)}</div>' if parts else ""
 
 
+def page_head(title: str, css: str) -> list[str]:
+    """The HTML lines from the doctype to the page's ``<h1>`` (inside an open ``<header>``): the one page
+    head of the mission, replay and campaign reports."""
+    esc = html.escape
+    return [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{esc(title)}</title>",
+        f"<style>{css}</style>",
+        "</head>",
+        "<body>",
+        "<main>",
+        "<header>",
+        f"<h1>{esc(title)}</h1>",
+    ]
+
+
 def _header_html(result: Mapping[str, Any]) -> list[str]:
     """The page's head and its header: the title, the outcome badge, the preset, seed and success line."""
     esc = html.escape
@@ -389,18 +409,7 @@ def _header_html(result: Mapping[str, Any]) -> list[str]:
     if "success" in result:
         sub.append("success <b>" + ("yes" if result.get("success") else "no") + "</b>")
     return [
-        "<!DOCTYPE html>",
-        '<html lang="en">',
-        "<head>",
-        '<meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{esc(title)}</title>",
-        f"<style>{_CSS}</style>",
-        "</head>",
-        "<body>",
-        "<main>",
-        "<header>",
-        f"<h1>{esc(title)}</h1>",
+        *page_head(title, _CSS),
         f'<span class="badge" style="background:{color}">{esc(outcome)}</span>',
         f'<p class="sub">{" &middot; ".join(sub)}</p>' if sub else "",
         "</header>",
