@@ -35,8 +35,8 @@ def raw(t: float, p: object, cov: object) -> PlatformMeasurement:
     m = object.__new__(PlatformMeasurement)
     for k, v in {"t": t, "p_WP": np.asarray(p, float), "cov_p_WP": np.asarray(cov, float)}.items():
         object.__setattr__(m, k, v)
-    object.__setattr__(m, "yaw", None)
-    object.__setattr__(m, "yaw_var", None)
+    for k in ("yaw", "yaw_var", "n_WP", "cov_n_WP"):  # the optional fields, as __init__ would leave them
+        object.__setattr__(m, k, None)
     return m
 
 

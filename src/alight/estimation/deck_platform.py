@@ -35,6 +35,7 @@ import numpy as np
 
 from alight.errors import MeasurementError
 from alight.estimation.deck_estimator import DeckEstimator, DeckEstimatorConfig, DeckPrediction
+from alight.estimation.guards import check_measurement
 from alight.types import FloatArray, PlatformEstimate, PlatformMeasurement
 
 __all__ = [
@@ -117,6 +118,9 @@ class DeckPlatformEstimator:
 
     def update(self, measurement: PlatformMeasurement) -> bool:
         m = measurement
+        # the camera path's one rule for every platform estimator: an absurd measurement is refused
+        # (MeasurementError) before anything is read from it; a late or future one returns False below
+        check_measurement(m, "deck_kf.update")
         rp: FloatArray | None = None
         cov_rp: FloatArray | None = None
         h = self.deck.horizontal
