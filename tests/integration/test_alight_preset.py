@@ -5,6 +5,7 @@ missions use."""
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Any
 
@@ -51,21 +52,32 @@ def test_alight_lands_with_vision(what: str, keys: dict[str, Any], seed: int) ->
 
 
 def test_optical_flow_catches_a_deck_that_brakes_under_the_committed_descent() -> None:
-    """The envelope's brake (6 m/s, 6 m/s^2 at 12 s) under the committed descent: without an optical-flow
-    module the feet meet a deck that has slowed by ~1.7 m/s (crashed); with one, the deck is measured
-    leaving the estimate 0.1 s into the brake, the vehicle goes around and lands on the next approach; with
-    the module's samples lost across the brake (a flow fault), it crashes as without one."""
+    """The envelope's brake (6 m/s, 6 m/s^2) under the committed descent: without an optical-flow module
+    the feet meet a deck that has slowed (crashed); with one, the deck is measured leaving the estimate
+    0.1 s into the brake, the vehicle goes around and lands on the next approach; with the module's
+    samples lost across the brake (a flow fault), it crashes as without one.
+
+    The brake is placed 0.4 s before the undisturbed mission's first contact, so that it falls under the
+    committed descent whatever the approach's timing (a fixed brake time tested the approach's timing
+    too: 0.4 s earlier landings put a brake at 12 s after the contact)."""
     base: dict[str, Any] = {"preset": "alight", "seed": BRAKE_SEED, "duration_s": 120, "platform": BRAKE}
+    late = copy.deepcopy(base)
+    late["platform"]["speed_profile"]["brake_stop"]["t_s"] = 100.0  # after the landing: undisturbed
+    undisturbed = run_mission(scenario_from_dict(late), record=False).result
+    assert undisturbed["outcome"] == "landed", undisturbed["outcome_reason"]
+    t_brake = float(undisturbed["time_first_contact_s"]) - 0.4
+    base["platform"] = copy.deepcopy(BRAKE)
+    base["platform"]["speed_profile"]["brake_stop"]["t_s"] = t_brake
     without = run_mission(scenario_from_dict(base), record=False).result
     assert without["outcome"] == "crashed", without["outcome_reason"]
     flown = run_mission(scenario_from_dict({**base, "optical_flow": {}}), record=False).result
     assert flown["outcome"] == "landed", (flown["outcome_reason"], flown["abort_reason"])
     slips = [e for e in flown["failsafe_events"] if e["reason"].startswith("the deck left the estimate")]
-    assert len(slips) == 1 and 12.0 < slips[0]["t"] < 12.3, slips
+    assert len(slips) == 1 and t_brake < slips[0]["t"] < t_brake + 0.3, (t_brake, slips)
     assert flown["touchdown_error_m"] < 0.15
     # a module that sees nothing across the brake (faults.flow_dropouts: a featureless deck) leaves the
     # gate silent: the descent meets the brake as without a module
-    blind = {**base, "optical_flow": {}, "faults": {"flow_dropouts": [[11.5, 14.0]]}}
+    blind = {**base, "optical_flow": {}, "faults": {"flow_dropouts": [[t_brake - 0.5, t_brake + 2.0]]}}
     dark = run_mission(scenario_from_dict(blind), record=False).result
     assert not [e for e in dark["failsafe_events"] if e["reason"].startswith("the deck left the estimate")]
     assert dark["outcome"] == "crashed", dark["outcome_reason"]
