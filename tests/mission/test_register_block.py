@@ -156,7 +156,7 @@ def test_an_unknown_block_is_refused_in_one_line_naming_the_known_ones() -> None
         scenario_from_dict({"preset": "groundtruth", "blocks": {"platform_estimator": "counting_ekf"}})
     assert str(err.value) == (
         "scenario: blocks.platform_estimator: unknown platform_estimator 'counting_ekf', "
-        "expected one of ['unicycle_ekf', 'kim_ukf', 'sdu_kf']"
+        "expected one of ['unicycle_ekf', 'deck_kf', 'kim_ukf', 'sdu_kf']"
     )
     with pytest.raises(ValueError, match="unknown stage 'lidar'"):
         register_block(BlockSpec("lidar", "x", "", RedCentroidParams, build=_red_centroid))

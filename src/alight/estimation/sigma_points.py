@@ -23,11 +23,10 @@ positive definite falls back to the symmetric square root with negative eigenval
 from __future__ import annotations
 
 import math
-from typing import Protocol, runtime_checkable
+from typing import Protocol, cast, runtime_checkable
 
 import numpy as np
 
-from alight.numerics.linalg import cholesky
 from alight.types import FloatArray
 
 
@@ -57,15 +56,16 @@ def matrix_sqrt(P: FloatArray) -> FloatArray:
     """A factor ``L`` with ``L L^T = P`` (n, n): lower Cholesky, or the symmetric square root with negative
     eigenvalues clipped when ``P`` is not numerically positive definite (then ``L L^T`` is the nearest
     positive semi-definite matrix)."""
-    # The project's one Cholesky (numerics.linalg), not numpy's: the compiled UKF step factors with it,
-    # so the Python and compiled paths agree on which covariance is positive definite.
-    P = np.ascontiguousarray(P, dtype=np.float64)
-    L: FloatArray = np.empty_like(P)
-    if cholesky(P, L):
+    # LAPACK's Cholesky (numpy) on this Python path; numerics.linalg.cholesky is the kernels' own (a call
+    # from Python would add a kernel signature to every first run's compile). Both refuse the same
+    # matrices up to round-off, and a refusal here falls back to the clipped symmetric root.
+    try:
+        # float64 for a float64 P; numpy's stubs type cholesky's result floating[Any]
+        return cast(FloatArray, np.linalg.cholesky(P))
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (P + P.T))
+        L: FloatArray = V * np.sqrt(np.clip(w, 0.0, None))  # typed Any (np.sqrt's stub drops the dtype)
         return L
-    w, V = np.linalg.eigh(0.5 * (P + P.T))
-    L = V * np.sqrt(np.clip(w, 0.0, None))  # typed Any (np.sqrt's stub drops the dtype)
-    return L
 
 
 class _CachedWeights:
