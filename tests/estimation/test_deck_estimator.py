@@ -156,3 +156,68 @@ def test_the_prediction_one_second_ahead_is_well_below_the_motion(mru: bool) -> 
     # and the predicted covariance grows with the horizon
     pred = out[-1][0]
     assert (np.diff(pred.cov[:, 0, 0]) > 0).all()
+
+
+def _fitted_estimator() -> DeckEstimator:
+    deck = _sea(5, 11)
+    est = DeckEstimator()
+    for r in simulate_deck_readings(deck, 90.0, np.random.default_rng(12), speed_mps=SPEED):
+        _feed(est, r)
+    assert est.fitted
+    return est
+
+
+def _van_loan_direct(A: np.ndarray, Qc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.linalg import expm
+
+    n = A.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n], M[:n, n:], M[n:, n:] = -A, Qc, A.T
+    E = expm(M * dt)
+    F = E[n:, n:].T
+    return F, F @ E[:n, n:]
+
+
+def test_the_transition_over_a_long_horizon_is_exact_and_finite() -> None:
+    # the discretisation takes long horizons by scaling and squaring: where the direct Van Loan form is
+    # still accurate it must agree with it; at MAX_HORIZON_S (where the direct form overflows) the AR
+    # part of Q must be the closed form S - F S F^T and the mean's the random walk's q t, with no
+    # floating-point warning on the way
+    from scipy.linalg import solve_continuous_lyapunov
+
+    from alight.estimation.guards import MAX_HORIZON_S
+
+    est = _fitted_estimator()
+    p = est._p
+    for ch, chan in enumerate(est._channels):
+        o = est._offset(ch)
+        A = np.zeros((p + 1, p + 1))
+        A[1:, 1:] = chan.A_x
+        Qc = np.zeros((p + 1, p + 1))
+        Qc[0, 0], Qc[p, p] = chan.mean_noise**2, chan.q
+        norm = float(np.abs(A).sum(axis=0).max())
+        dt = 12.0 / norm  # three doublings, and exp(12) is still far from any loss of precision
+        F, Q = est._discrete(dt)
+        F0, Q0 = _van_loan_direct(A, Qc, dt)
+        block = slice(o, o + p + 1)
+        np.testing.assert_allclose(F[block, block], F0, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            Q[block, block], 0.5 * (Q0 + Q0.T), rtol=1e-7, atol=1e-12 * np.abs(Q0).max()
+        )
+        with np.errstate(all="raise"):
+            F, Q = est._discrete(MAX_HORIZON_S)
+        # for a stable A the closed form is Q(t) = S - F(t) S F(t)^T, S the stationary covariance
+        S = solve_continuous_lyapunov(chan.A_x, -Qc[1:, 1:])
+        Fx = F[o + 1 : o + p + 1, o + 1 : o + p + 1]
+        np.testing.assert_allclose(
+            Q[o + 1 : o + p + 1, o + 1 : o + p + 1], S - Fx @ S @ Fx.T, rtol=1e-6, atol=1e-9 * np.abs(S).max()
+        )
+        assert Q[o, o] == pytest.approx(chan.mean_noise**2 * MAX_HORIZON_S, rel=1e-9)
+
+
+def test_a_query_far_ahead_is_finite_and_raises_no_floating_point_warning() -> None:
+    est = _fitted_estimator()
+    with np.errstate(all="raise"):
+        pred = est.predict(est.t_filter + np.array([1e7, -1e7, 1e3, 5.0]))
+    assert np.isfinite(pred.state).all() and np.isfinite(pred.cov).all()
+    np.testing.assert_array_equal(pred.state[0], pred.state[2])  # both taken at MAX_HORIZON_S

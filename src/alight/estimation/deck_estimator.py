@@ -338,10 +338,24 @@ class DeckEstimator:
             M[: p + 1, : p + 1] = -A
             M[: p + 1, p + 1 :] = Qc
             M[p + 1 :, p + 1 :] = A.T
-            E = expm(M * dt)
+            # Van Loan's block exp(-A h) grows as exp(|A| h): over a long horizon it overflows (and loses
+            # Qd's precision well before). Take it over h = dt / 2^k with |A| h <= 4, then double k times
+            # by the semigroup law F(2h) = F(h)^2, Q(2h) = F(h) Q(h) F(h)^T + Q(h) (exact, and bounded
+            # work: k is at most ~20 for any horizon up to MAX_HORIZON_S)
+            scale = float(np.abs(A).sum(axis=0).max()) * dt
+            k = max(0, math.ceil(math.log2(scale / 4.0))) if scale > 4.0 else 0
+            h = dt / 2.0**k
+            E = expm(M * h)
             Fc = E[p + 1 :, p + 1 :].T
-            F[o : o + p + 1, o : o + p + 1] = Fc
             Qd = Fc @ E[: p + 1, p + 1 :]
+            Qd = 0.5 * (Qd + Qd.T)
+            for _ in range(k):
+                Qd = Fc @ Qd @ Fc.T + Qd
+                Fc = Fc @ Fc
+                # a transition decayed below 1e-100 adds nothing beside Q's order-one terms; kept, its
+                # products underflow
+                Fc[np.abs(Fc) < 1e-100] = 0.0
+            F[o : o + p + 1, o : o + p + 1] = Fc
             Q[o : o + p + 1, o : o + p + 1] = 0.5 * (Qd + Qd.T)
         if len(self._cache) > 64:
             self._cache.clear()
