@@ -21,6 +21,7 @@ from alight.perception.nfold import (
     nfold_detect_filter2d,
     nfold_kernel,
     nfold_response_filter2d,
+    ray_consistency,
 )
 from alight.sim.render import RenderOptions
 
@@ -328,6 +329,52 @@ def test_square_marker_photos_have_no_nfold_marker(real_dir: Path, n: int) -> No
         assert det.detect(img, 0.0) == [], name
 
 
+def test_a_scaled_down_marker_board_has_no_nfold_marker(real_dir: Path) -> None:
+    """Where four square markers of the board meet, the paper's method (no ray check) finds a 4-fold
+    "marker" on the board photo scaled down to 214 x 161 (q = 0.997, the detector fuzz harness's case);
+    its edges are not rays from the tip, and the default detector finds nothing."""
+    img = cv2.imread(str(real_dir / "aruco_charuco_real_photos" / "gboriginal.png"))
+    assert img is not None
+    small = cv2.resize(img, (214, 161), interpolation=cv2.INTER_AREA)
+    paper = NFoldDetector(NFoldConfig(min_ray_consistency=0.0)).detect_result(small)
+    assert paper is not None and paper.quality >= 0.9
+    assert ray_consistency(cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), paper.x, paper.y, paper.k) < 0.7
+    assert NFoldDetector().detect(small, 0.0) == []
+
+
+def _crossing(gap_px: int, square_px: int) -> np.ndarray:
+    """Four dark squares round a white cross of ``gap_px`` wide bars, centred at (80, 60), blurred."""
+    img = np.full((120, 160), 200, np.uint8)
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            x0 = 80 + (gap_px // 2 if sx > 0 else (-gap_px) // 2 - square_px)
+            y0 = 60 + (gap_px // 2 if sy > 0 else (-gap_px) // 2 - square_px)
+            img[y0 : y0 + square_px, x0 : x0 + square_px] = 60
+    return cv2.GaussianBlur(img, (3, 3), 0.8)
+
+
+@pytest.mark.parametrize("gap_px", [5, 6])
+def test_a_crossing_of_bars_is_not_a_marker(gap_px: int) -> None:
+    # the gaps of a drawn crossing pass the paper's quality at a kernel size where their angular width is
+    # a wedge's; the angular width of a bar shrinks with the radius, a wedge's does not
+    img = _crossing(gap_px, 14)
+    paper = NFoldDetector(NFoldConfig(min_ray_consistency=0.0)).detect_result(img)
+    assert paper is not None and paper.quality >= 0.9
+    assert ray_consistency(img, paper.x, paper.y, paper.k) < 0.7
+    assert NFoldDetector().detect(img, 0.0) == []
+
+
+@pytest.mark.parametrize("n", [4, 5])
+def test_rays_of_an_ideal_marker_agree_on_every_circle(n: int) -> None:
+    # an ideal marker is a function of the angle alone: both circles see the same arcs, whatever the
+    # kernel size (at k = 13 the inner circle's radius is 2.1 px: the pixels, not the marker, cost a few
+    # angles); a flat patch gives 0
+    img = draw_marker((120, 160), 80.0, 60.0, n, 0.3, 40.0, blur=0.8)
+    for k in (13, 25, 41):
+        assert ray_consistency(img, 80.0, 60.0, k) >= (0.9 if k == 13 else 0.95)
+    assert ray_consistency(np.full((50, 50), 90, np.uint8), 25.0, 25.0, 13) == 0.0
+
+
 # ------------------------------------------------------------------------------------------ robustness
 
 
@@ -377,6 +424,8 @@ def test_filter2d_reference_rejects_what_it_cannot_use() -> None:
         {"n_candidates": 0},
         {"coarse_min_k": 4},
         {"min_magnitude": -1.0},
+        {"min_ray_consistency": 1.5},
+        {"min_ray_consistency": math.nan},
     ],
 )
 def test_invalid_config_raises(kw: dict[str, object]) -> None:

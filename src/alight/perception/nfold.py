@@ -70,6 +70,21 @@ reference for the tests and the benchmark. :class:`NFoldDetector` computes the s
 
 Speed at 752 x 480 on one core: ``benchmarks/bench_nfold.py`` (its module docstring has the figures).
 
+*Edges through the tip* (``min_ray_consistency``, not in the paper or the sheet). The quality score looks at
+one scale, the kernel's, and a pattern that is n-fold only there passes it: where four square markers of a
+board meet, the white gaps between them are a cross whose arms, at the kernel's radius, are about as wide
+as a 4-fold marker's white wedges (q = 0.997 on a down-scaled board photo). The marker's own geometry
+tells them apart: its 2n edges are straight lines through the tip, and a perspective view maps straight
+lines to straight lines and the tip to the tip, so its image is a function of the angle about the tip
+alone, the same bright and dark arcs on every circle round it (up to blur). A bar's edges run parallel to
+the bar, so the angular width of a gap shrinks as 1 / r. :func:`ray_consistency` compares the two circles
+at 0.35 and 0.85 of the kernel's half size round the sub-pixel tip, each split at its own mid-grey: the
+fraction of angles where they agree was 0.875-1.0 (median 0.97-0.99) on 79 rendered markers from 1.5 to
+18 m, tilted up to 0.45 rad, with sensor noise, and 1.0 on the real photo of a marker; 0.58 on the
+board's crossing and 0.56-0.67 on drawn crossings of 5-6 px gaps. (A crossing of 3 px gaps is, at that
+scale, the image of a marker of 6 px radius: no test at the pixel level tells them apart.) A candidate
+below ``min_ray_consistency`` (0.75) is not a marker, and the next candidate is tried.
+
 Known limit of the oriented template: a T-junction of thick dark bars (the border of a square marker meeting
 a dark cell, a ChArUco board) looks like three legs and a missing one; on the real ChArUco photos the
 oriented 4-fold template scored q = 1.0 there, while the plain 4-fold template stayed at or below 0.27 on
@@ -516,6 +531,10 @@ class NFoldConfig:
     min_magnitude: float = 0.5
     """Candidates with ``|R|`` below this (grey levels; a marker of contrast C gives ~C/pi) are numerical
     noise of a uniform image, not candidates."""
+    min_ray_consistency: float = 0.75
+    """Least fraction of angles at which two circles round the tip agree on bright and dark
+    (:func:`ray_consistency`; the module docstring's "Edges through the tip", not in the paper): a
+    marker's edges are rays from its tip; 0 turns the check off (the paper's method)."""
 
     def __post_init__(self) -> None:
         sizes = tuple(int(k) for k in self.kernel_sizes)
@@ -529,6 +548,8 @@ class NFoldConfig:
             and self.coarse_min_k >= 5
             and self.coarse_min_k % 2 == 1,
             "min_magnitude": math.isfinite(self.min_magnitude) and self.min_magnitude >= 0,
+            "min_ray_consistency": math.isfinite(self.min_ray_consistency)
+            and 0.0 <= self.min_ray_consistency <= 1.0,
         }
         bad = [name for name, ok in checks.items() if not ok]
         if bad:
@@ -605,9 +626,13 @@ class NFoldDetector:
             tried.append(k)
             for peak in search.peaks(k):
                 res = peak.finish()
-                if res.quality >= cfg.min_quality:
+                if res.quality >= cfg.min_quality and self._edges_through_tip(gray, res):
                     return _with_tried(res, tuple(tried))
         return None
+
+    def _edges_through_tip(self, gray: U8Array, res: NFoldResult) -> bool:
+        floor = self.config.min_ray_consistency
+        return floor <= 0.0 or ray_consistency(gray, res.x, res.y, res.k) >= floor
 
     def detect_at(self, image: Image, k: int) -> NFoldResult | None:
         """The method at one kernel size: the candidate of largest full-resolution magnitude, whatever
@@ -626,6 +651,35 @@ class NFoldDetector:
             return []
         _check_order_size(self.config.order, k)
         return [p.finish() for p in _Search(gray, self.config).peaks(k)]
+
+
+RAY_RADII = (0.35, 0.85)
+"""The two circles of :func:`ray_consistency`, as fractions of the kernel's half size ``(k - 1) / 2``:
+inside the quality template's ring and near its edge."""
+RAY_SAMPLES = 72
+"""Samples per circle (5 deg apart: a 4-fold marker's wedges are 45 deg)."""
+
+
+def ray_consistency(gray: U8Array, x: float, y: float, k: int) -> float:
+    """The fraction (0 to 1) of angles at which two circles of radii :data:`RAY_RADII` times
+    ``(k - 1) / 2`` round the point ``(x, y)`` (px) of the grey image (bilinear, reflect-101 border) are
+    on the same side of their own mid-grey: 1 where the image about the point is a function of the angle
+    alone, as a marker's is about its tip (module docstring, "Edges through the tip"); 0 when either
+    circle is flat."""
+    phi = np.arange(RAY_SAMPLES) * (2.0 * math.pi / RAY_SAMPLES)
+    h = 0.5 * (k - 1)
+    radii = np.array(RAY_RADII)[:, None] * h
+    # cv2.remap is OpenCV's bilinear sampler: one call for both circles
+    map_x = (x + radii * np.cos(phi)).astype(np.float32)
+    map_y = (y + radii * np.sin(phi)).astype(np.float32)
+    rings = cv2.remap(
+        gray.astype(np.float32), map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101
+    )
+    lo, hi = rings.min(axis=1), rings.max(axis=1)
+    if not bool((hi - lo > 1e-6).all()):
+        return 0.0
+    bright = rings > 0.5 * (lo + hi)[:, None]
+    return float((bright[0] == bright[1]).mean())
 
 
 def _with_tried(r: NFoldResult, tried: tuple[int, ...]) -> NFoldResult:
@@ -782,4 +836,5 @@ __all__ = [
     "nfold_detect_filter2d",
     "nfold_kernel",
     "nfold_response_filter2d",
+    "ray_consistency",
 ]
