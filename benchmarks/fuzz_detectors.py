@@ -13,7 +13,11 @@ defaults on its pad's default layout, as ``alight detect`` builds it) gets the s
   quarter, a red stripe, a red border, red and grey gradients (horizontal, vertical, radial), noise
   (grey, colour, reddish, salt and pepper), checkerboards and stripes;
 - the real photos of ``../shared/testdata/real`` corrupted: the file cut short or with flipped bytes and
-  then decoded, channels swapped, cropped, scaled down, noised, inverted, tinted red, 16-bit.
+  then decoded, channels swapped, cropped, scaled down, noised, inverted, tinted red, 16-bit. A damaged
+  file is decoded as alight's readers decode it (``--decoder alight``, the default:
+  :func:`alight.perception.image_decode.decode_image_bytes`, which refuses a JPEG that libjpeg flags;
+  those count as ``decode_refused`` and reach no detector), or as a lenient driver would
+  (``--decoder opencv``: ``cv2.imdecode``, which hands on the partial image).
 
 Counted per detector: ``crashes`` (an exception other than the documented
 :class:`~alight.errors.ImageError`), ``hangs`` (a call over the limit, SIGALRM), ``refused``
@@ -56,6 +60,7 @@ from alight.errors import ImageError
 from alight.pads import PADS
 from alight.perception import DETECTORS
 from alight.perception.detect_cli import detector_names, make_detector
+from alight.perception.image_decode import decode_image_bytes
 from alight.sim.render import Renderer, RenderOptions
 from alight.sim.textures import make_ground_texture
 from alight.types import rot_z
@@ -187,9 +192,23 @@ def load_photos(testdata: Path) -> dict[str, tuple[bytes, Any]]:
     return out
 
 
+class Refused:
+    """A damaged file that the decoder refused: no frame reaches a detector (counted ``decode_refused``)."""
+
+    def __init__(self, reason: str) -> None:
+        self.reason = reason
+
+
+DECODERS = ("alight", "opencv")
+"""``alight``: :func:`alight.perception.image_decode.decode_image_bytes`, the reader of ``alight detect``
+and of the replay's compressed frames (a JPEG that libjpeg flags as damaged is refused); ``opencv``:
+``cv2.imdecode``, a lenient driver that hands on what libjpeg could make of the damaged data."""
+_decoder = {"name": "alight"}
+
+
 def _decode(data: bytes) -> Any:
-    """What a driver decoding a damaged file hands on: the partial image, or None when it cannot (libjpeg's
-    complaints on the damaged file, written to the process's stderr, are silenced)."""
+    """What the decoder hands on for a damaged file: the image, the partial image (``opencv``), a
+    :class:`Refused` (``alight``), or None (libjpeg's and libpng's complaints on stderr are silenced)."""
     if not data:
         return None
     sys.stderr.flush()
@@ -197,7 +216,10 @@ def _decode(data: bytes) -> Any:
     with open(os.devnull, "wb") as null:
         os.dup2(null.fileno(), 2)
         try:
-            return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+            if _decoder["name"] == "opencv":
+                return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+            img, reason = decode_image_bytes(data)
+            return img if img is not None else Refused(reason or "refused")
         finally:
             os.dup2(saved, 2)
             os.close(saved)
@@ -322,7 +344,8 @@ def _well_formed(obs: Any) -> bool:
 class Counts:
     def __init__(self) -> None:
         self.c = {
-            "images": 0, "crashes": 0, "hangs": 0, "refused": 0, "malformed": 0, "false_detections": 0,
+            "images": 0, "decode_refused": 0, "crashes": 0, "hangs": 0, "refused": 0, "malformed": 0,
+            "false_detections": 0,
             "photo_targets_seen": 0, "targets": 0, "targets_missed": 0,
         }  # fmt: skip
         self.examples: list[str] = []
@@ -352,6 +375,9 @@ def run_detector(
             counts.fail("targets_missed", f"photo:{stem}:{status}")
     for kind, photo, image in images(n, seed, photos):
         counts.c["images"] += 1
+        if isinstance(image, Refused):
+            counts.c["decode_refused"] += 1
+            continue
         status, obs = _call(partial(det.detect, image, 2.0), limit_s if kind in seen else WARMUP_LIMIT_S)
         seen.add(kind)
         where = f"{kind}:{photo}" if photo else kind
@@ -375,8 +401,12 @@ def run(
     testdata: Path | None = None,
     only: list[str] | None = None,
     n_targets: int = 10,
+    decoder: str = "alight",
 ) -> dict[str, Any]:
-    """The whole harness; the JSON summary as a dict."""
+    """The whole harness; the JSON summary as a dict (``decoder``: one of :data:`DECODERS`)."""
+    if decoder not in DECODERS:
+        raise ValueError(f"decoder must be one of {DECODERS}, got {decoder!r}")
+    _decoder["name"] = decoder
     signal.signal(signal.SIGALRM, _on_alarm)
     cv2.setNumThreads(1)
     photos = load_photos(testdata if testdata is not None else ROOT.parent / "shared" / "testdata" / "real")
@@ -388,6 +418,7 @@ def run(
     return {
         "images_per_detector": n,
         "photos": len(photos),
+        "decoder": decoder,
         "seed": seed,
         "per_call_limit_s": limit_s,
         "detectors": per,
@@ -406,8 +437,11 @@ def main(argv: list[str] | None = None) -> int:
         "--testdata", type=Path, default=None, help="the real photos (../shared/testdata/real)"
     )
     parser.add_argument("--only", nargs="*", default=None, help="these detectors only")
+    parser.add_argument(
+        "--decoder", choices=DECODERS, default="alight", help="how the damaged files are decoded"
+    )
     args = parser.parse_args(argv)
-    summary = run(args.n, args.seed, args.limit_s, args.testdata, args.only, args.targets)
+    summary = run(args.n, args.seed, args.limit_s, args.testdata, args.only, args.targets, args.decoder)
     print(json.dumps(summary, indent=2))
     return 0 if not any(summary["totals"].values()) else 1
 

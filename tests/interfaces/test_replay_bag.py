@@ -211,3 +211,23 @@ def test_an_mcap_bag_cut_short_replays_what_was_written(tmp_path: Path) -> None:
     # what was read is the start of the flight, unchanged
     assert r["t_start_s"] == pytest.approx(0.0, abs=1e-9)
     assert r["ego_extent_m"]["z"][0] == pytest.approx(1.0, abs=0.03)
+
+
+def test_a_damaged_compressed_frame_is_dropped() -> None:
+    # a JPEG frame whose entropy-coded data has wrong bytes decodes in OpenCV to blocks of shifted colour;
+    # the replay drops it as undecodable (perception/image_decode.py)
+    T = get_typestore(Stores.ROS2_HUMBLE).types
+    grid = np.indices((96, 128)).sum(axis=0) % 2 * 200
+    bgr = np.dstack([grid, grid // 2, 255 - grid]).astype(np.uint8)
+    ok, jpg = cv2.imencode(".jpg", bgr)
+    data = bytearray(jpg.tobytes())
+    for i in range(len(data) // 2, len(data) - 2, 97):
+        data[i] = 0xFF if data[i] != 0xFF else 0x00
+    header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id="c")
+    good = T["sensor_msgs/msg/CompressedImage"](header=header, format="jpeg", data=jpg.reshape(-1))
+    bad = T["sensor_msgs/msg/CompressedImage"](
+        header=header, format="jpeg", data=np.frombuffer(bytes(data), np.uint8)
+    )
+    assert ok and decode_image(good, "sensor_msgs/msg/CompressedImage") is not None
+    assert cv2.imdecode(np.frombuffer(bytes(data), np.uint8), cv2.IMREAD_UNCHANGED) is not None
+    assert decode_image(bad, "sensor_msgs/msg/CompressedImage") is None

@@ -46,7 +46,7 @@ def test_bad_files_are_reported_and_the_rest_go_on(tmp_path: Path, real_dir: Pat
     assert [d["image"] for d in lines] == paths
     for d, word in zip(
         lines[:5],
-        ["empty", "not a decodable image", "not found", "directory", "not a decodable"],
+        ["empty", "damaged JPEG", "not found", "directory", "not a decodable"],
         strict=True,
     ):
         assert d["ok"] is False and word in d["error"]

@@ -35,6 +35,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from alight.errors import ReplayError
 from alight.evaluation.recorded_flight import LogMessage
 from alight.interfaces.frames import frd_to_flu, mavlink_to_q_WB_many, ned_to_enu
+from alight.perception.image_decode import decode_image_bytes
 
 FloatArray = NDArray[np.float64]
 
@@ -873,10 +874,8 @@ def decode_image(msg: Any, msgtype: str) -> NDArray[np.uint8] | None:
     """A ``sensor_msgs/Image`` (mono8, bgr8, rgb8, bgra8, rgba8, mono16) or ``CompressedImage`` (any
     format OpenCV decodes) as an (H, W) grey or (H, W, 3) BGR uint8 array; None when it cannot be."""
     if msgtype == "sensor_msgs/msg/CompressedImage":
-        buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
-        if buf.size == 0:
-            return None
-        img: Any = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+        # a damaged frame (a JPEG that libjpeg flags) is dropped like any undecodable one
+        img: Any = decode_image_bytes(bytes(msg.data))[0]
         if img is None or img.dtype not in (np.uint8, np.uint16):
             return None
         if img.dtype == np.uint16:

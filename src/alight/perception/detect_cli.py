@@ -31,7 +31,6 @@ import time
 from collections.abc import Sequence
 from typing import Any, TextIO
 
-import cv2
 import numpy as np
 
 from alight.blockspec import NoContext
@@ -40,6 +39,7 @@ from alight.errors import ConfigError
 from alight.pads import PADS
 from alight.perception import DETECTORS, Detector, DetectorContext
 from alight.perception.aruco import merge_observations
+from alight.perception.image_decode import decode_image_bytes
 from alight.perception.pnp import solve_pnp
 from alight.types import Observation
 
@@ -83,13 +83,7 @@ def read_image(path: str) -> tuple[np.ndarray | None, str | None]:
         return None, f"cannot read file ({e.strerror or e})"
     if not data:
         return None, "empty file (0 bytes)"
-    try:
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    except cv2.error:
-        img = None
-    if img is None or img.size == 0:
-        return None, f"not a decodable image (corrupt or unsupported format, {len(data)} bytes)"
-    return img, None
+    return decode_image_bytes(data)
 
 
 def _obs_json(o: Observation) -> dict[str, Any]:
