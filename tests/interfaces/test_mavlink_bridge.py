@@ -371,3 +371,30 @@ def test_odometry_reset_counter_keeps_the_pipelines_frame() -> None:
     assert bridge.pipeline.ego_estimator.n_relocalizations == 1
     p = np.array(heights)
     np.testing.assert_allclose(p[:, 1], 1.0, atol=0.02)  # ENU y = north, no jump
+
+
+def test_a_frame_read_ahead_of_the_autopilots_clock_waits_for_it() -> None:
+    # the camera stream is read before the link's queued IMU messages: a frame stamped up to
+    # max_time_jump_s after the bridge's clock waits and is used when the clock reaches its stamp; one
+    # further ahead, out of order, too old or past the waiting room is refused, counted by its reason
+    bridge, cap, cam = make_bridge(arm=True)
+    ap = FakeAutopilot()
+    fly(bridge, cap, cam, ap, 1.0)
+    used0, t0 = bridge.stats.accepted.get("frame", 0), bridge.t_ap
+    blank = np.zeros((480, 752), dtype=np.uint8)
+    cam.frames += [(t0 + 0.05, blank), (t0 + 0.10, blank), (t0 + 0.10, blank), (t0 + 5.0, blank)]
+    bridge._read_camera(t0)
+    assert bridge.stats.accepted.get("frame", 0) == used0 and len(bridge._waiting_frames) == 2
+    assert bridge.stats.rejected["frame_order"] == 1 and bridge.stats.rejected["frame_ahead"] == 1
+    bridge._read_camera(t0 + 0.06)
+    assert bridge.stats.accepted["frame"] == used0 + 1 and len(bridge._waiting_frames) == 1
+    bridge._read_camera(t0 + 0.2)
+    assert bridge.stats.accepted["frame"] == used0 + 2 and not bridge._waiting_frames
+    assert bridge.frame_times[-2:] == [t0 + 0.06, t0 + 0.2]
+    cam.frames += [(t0 + 0.2 + 0.01 * (i + 1), blank) for i in range(10)] + [(t0 - 3.0, blank)]
+    bridge._read_camera(t0 + 0.2)
+    assert len(bridge._waiting_frames) == 8 and bridge.stats.rejected["frame_ahead"] == 3
+    assert bridge.stats.rejected["frame_late"] == 1
+    assert bridge.stats.rejected["frame"] == sum(
+        bridge.stats.rejected[k] for k in ("frame_order", "frame_ahead", "frame_late")
+    )

@@ -27,6 +27,13 @@ The receive path never raises: bytes go through pymavlink's parser in robust mod
 anything but the autopilot (its system and component id, learnt from its HEARTBEAT) are dropped, every
 field is checked (finite, in physical range, timestamps strictly increasing per stream and no more than
 ``max_time_jump_s`` ahead), and a rejected message is counted in ``BridgeStats`` instead.
+
+Camera frames come on their own stream (TCP from the simulator, or a camera of the companion's own), and
+the autopilot's clock is the time of its latest IMU message, which reaches the bridge through the link's
+queue. A frame read before the IMU messages of its time have been handled is stamped after the bridge's
+clock; it waits (at most :data:`FRAME_WAIT_MAX` frames, and no more than ``max_time_jump_s`` ahead) and is
+handled when the clock reaches its stamp, rather than refused. Refused frames are counted by reason
+(``frame_ahead``, ``frame_late``, ``frame_order``, ``frame_bad_time``) beside the total ``frame``.
 """
 
 from __future__ import annotations
@@ -143,6 +150,11 @@ class BridgeStats:
         self.rejected[kind] = self.rejected.get(kind, 0) + 1
 
 
+FRAME_WAIT_MAX = 8
+"""Frames stamped ahead of the autopilot's clock that wait for it (module docstring); a ninth is refused:
+the clock has stopped, not lagged (at 20 Hz, 0.4 s of frames)."""
+
+
 def _finite(*values: float) -> bool:
     return all(isinstance(v, int | float) and math.isfinite(v) for v in values)
 
@@ -220,6 +232,7 @@ class MavlinkBridge:
         self.hold_times: list[float] = []
         self._disarm_sent = False
         self.frame_times: list[float] = []
+        self._waiting_frames: list[tuple[float, np.ndarray]] = []  # stamped ahead of the clock (docstring)
 
     # -- bookkeeping -----------------------------------------------------------------------------------
     def _event(self, kind: str, **info: Any) -> None:
@@ -468,6 +481,8 @@ class MavlinkBridge:
         cam = self.camera
         if cam is None:
             return
+        while self._waiting_frames and self._waiting_frames[0][0] <= t + 1e-6:
+            self._use_frame(t, *self._waiting_frames.pop(0))
         if isinstance(cam, SocketCameraSource) and self.lockstep:
             # The emulator announced a frame on MAVLink: wait for it on the camera stream (lockstep).
             deadline = time.monotonic() + 1.0
@@ -488,8 +503,36 @@ class MavlinkBridge:
             if self._clock_offset is None:
                 return
             t_cap = t_cap + self._clock_offset - self.config.camera_latency_s
-        if not (_finite(t_cap) and t_cap <= t + 1e-6 and t - t_cap < 2.0) or not self._fresh("frame", t_cap):
+        why = self._frame_refusal(t, t_cap)
+        if why is not None:
             self.stats.bad("frame")
+            self.stats.bad(why)
+            return
+        if t_cap > t + 1e-6:
+            self._waiting_frames.append((t_cap, image))
+            return
+        self._use_frame(t, t_cap, image)
+
+    def _frame_refusal(self, t: float, t_cap: float) -> str | None:
+        """Why a frame stamped ``t_cap`` is refused at autopilot time ``t``, or None (it is used, or waits
+        for the clock to reach its stamp)."""
+        if not _finite(t_cap):
+            return "frame_bad_time"
+        if t - t_cap >= 2.0:
+            return "frame_late"
+        last = self._waiting_frames[-1][0] if self._waiting_frames else self._last.get("frame", -math.inf)
+        if not t_cap > last:
+            return "frame_order"
+        if t_cap > t + 1e-6 and (
+            t_cap > t + self.config.max_time_jump_s or len(self._waiting_frames) >= FRAME_WAIT_MAX
+        ):
+            return "frame_ahead"
+        return None
+
+    def _use_frame(self, t: float, t_cap: float, image: np.ndarray) -> None:
+        if not self._fresh("frame", t_cap):  # the stamps were checked in _frame_refusal; kept in order
+            self.stats.bad("frame")
+            self.stats.bad("frame_order")
             return
         self.stats.ok("frame")
         self._frame_t = t
