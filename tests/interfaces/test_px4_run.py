@@ -117,7 +117,10 @@ def test_a_px4_that_crashes_ends_the_mission_as_error(
     assert fly_px4_command(_scenario(), tmp_path / "out", args) == 0
     r = json.loads((tmp_path / "out" / "result.json").read_text())
     assert r["outcome"] == "error" and "closed the simulator link" in r["outcome_reason"]
-    assert r["px4"]["exit_code"] == 3 and r["simulated_time_s"] == pytest.approx(1.5, abs=0.02)
+    # the stand-in is never armed: it dies 1.5 s into its clock, before the mission's clock has started
+    lockstep = next(e for e in r["sitl"]["events"] if e.get("kind") == "px4_lockstep")
+    assert r["px4"]["exit_code"] == 3 and lockstep["sim_s"] == pytest.approx(1.5, abs=0.02)
+    assert r["simulated_time_s"] == 0.0 and r["sitl"]["px4_boot_s"] is None
     assert "px4 alight seed 1 (offboard): error" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="--autopilot sim only"):
         fly_px4_command(_scenario(), tmp_path / "out2", SimpleNamespace(**{**vars(args), "replay": True}))

@@ -142,8 +142,11 @@ class FakePx4:
     a HIL_ACTUATOR_CONTROLS of the same ``time_usec`` from the ``first_answer``-th on (PX4 starts its
     modules first), with ``controls``; ``pause_after`` steps it stops answering for ``pause_s``."""
 
-    def __init__(self, port: int, *, first_answer: int = 20, stop_after: int | None = None) -> None:
+    def __init__(
+        self, port: int, *, first_answer: int = 20, stop_after: int | None = None, arm_at: int | None = 1
+    ) -> None:
         self.port, self.first_answer, self.stop_after = port, first_answer, stop_after
+        self.arm_at = arm_at  # armed from this HIL_SENSOR on (the companion's arming); None: never
         self.times: list[int] = []
         self.gaps: list[float] = []
         self.controls = np.zeros(16)
@@ -185,6 +188,8 @@ class FakePx4:
                     self.times.append(msg.time_usec)
                     if len(self.times) == self.pause_at:
                         time.sleep(self.pause_s)
+                    if self.arm_at is not None and len(self.times) >= self.arm_at:
+                        self.armed = True
                     if len(self.times) >= self.first_answer:
                         mode = 129 if self.armed else 1
                         reply = tx.hil_actuator_controls_encode(msg.time_usec, list(self.controls), mode, 1)
@@ -209,18 +214,23 @@ def _fly(sim: Px4Simulator, with_companion: bool = True) -> tuple[dict[str, Any]
 
 
 def test_lockstep_with_a_fake_px4() -> None:
+    # PX4 answers from its 20th step and is armed (by the companion) at its 60th: the world stands still
+    # for those 60 steps (0.3 s of PX4's clock), then the 2 s mission runs, 400 steps more
     sim, port = _simulator(2.0, lockstep_timeout_s=5.0)
-    px4 = FakePx4(port, first_answer=20)
+    px4 = FakePx4(port, first_answer=20, arm_at=60)
     px4.pause_at, px4.pause_s = 200, 0.4  # PX4 busy for 0.4 s: the simulator must wait, not run on
     result, cam = _fly(sim)
     px4.thread.join(5.0)
     t = np.array(px4.times)
-    assert t.size == 400 and np.all(np.diff(t) == 5000) and t[0] == 5000  # 200 Hz, strictly increasing
+    assert t.size == 460 and np.all(np.diff(t) == 5000) and t[0] == 5000  # 200 Hz, strictly increasing
     assert px4.gaps[200] > 0.35  # the step after the pause came only once PX4 had answered
     stats = next(e for e in result["sitl_events"] if e["kind"] == "px4_lockstep")
-    assert stats["steps"] == 400 and stats["actuator_messages"] == 381
+    assert stats["steps"] == 460 and stats["actuator_messages"] == 441
     assert stats["first_actuator_t_s"] == pytest.approx(0.1)
-    assert result["outcome"] == Outcome.TIMEOUT.value  # never armed: the mission's time ran out
+    assert result["px4_boot_s"] == pytest.approx(0.3) and result["simulated_time_s"] == pytest.approx(2.0)
+    start = next(e for e in result["sitl_events"] if e["kind"] == "mission_start")
+    assert start["t"] == 0.0 and start["t_px4"] == pytest.approx(0.3)
+    assert result["outcome"] == Outcome.TIMEOUT.value  # armed but never flown: the mission's time ran out
     assert result["sitl_flavour"] == "px4-sitl"
     assert cam is not None
     deadline = time.monotonic() + 5.0
@@ -228,7 +238,23 @@ def test_lockstep_with_a_fake_px4() -> None:
         cam.poll()
         time.sleep(0.01)
     assert cam.scenario is not None and cam.result is not None and cam.result["outcome"] == "timeout"
-    assert cam.truth_log is not None and cam.truth_log["t"][-1] == pytest.approx(2.0)
+    assert cam.truth_log is not None and cam.truth_log["t"][-1] == pytest.approx(2.3)  # PX4's clock
+    cam.close()
+
+
+def test_the_world_waits_at_rest_for_px4_to_be_armed() -> None:
+    # while PX4 is not armed the platform stays where it is at t = 0 and the vehicle feels gravity through
+    # its feet; a PX4 that is never armed ends as an error with the reason, after arm_timeout_s of its clock
+    sim, port = _simulator(20.0, arm_timeout_s=0.5)
+    p0 = sim.world.truths.p_WP[0].copy()
+    FakePx4(port, first_answer=5, arm_at=None)
+    result, cam = _fly(sim)
+    assert result["outcome"] == "error" and "not armed within 0.5 s" in result["outcome_reason"]
+    assert sim.world.t == 0.0 and sim.world.k == 0 and result["px4_boot_s"] is None
+    np.testing.assert_array_equal(sim.world.truths.p_WP[sim.world.k], p0)
+    imu = sim._imu_at_rest()
+    assert imu[2] == pytest.approx(9.81, abs=0.3) and np.abs(imu[3:6]).max() < 0.05
+    assert cam is not None
     cam.close()
 
 
@@ -238,7 +264,9 @@ def test_px4_that_exits_ends_the_mission_as_error() -> None:
     t0 = time.monotonic()
     result, cam = _fly(sim)
     assert result["outcome"] == "error" and "closed" in result["outcome_reason"]
-    assert result["simulated_time_s"] == pytest.approx(0.25, abs=0.011) and time.monotonic() - t0 < 30
+    # armed in its first answer (step 5), gone after its 50th step: 45 steps of mission
+    assert result["px4_boot_s"] == pytest.approx(0.025) and time.monotonic() - t0 < 30
+    assert result["simulated_time_s"] == pytest.approx(0.225, abs=0.011)
     assert cam is not None
     cam.close()
 

@@ -215,7 +215,12 @@ def _outputs(
         "bridge": _bridge_record(bridge, config),
         "sitl": None
         if verdict is None
-        else {"flavour": v.get("sitl_flavour"), "events": v.get("sitl_events")},
+        else {
+            "flavour": v.get("sitl_flavour"),
+            "events": v.get("sitl_events"),
+            # PX4's time at the mission's t = 0 (PX4 as the autopilot: the world waited for its arming)
+            "px4_boot_s": v.get("px4_boot_s"),
+        },
     }
     events = {
         "t_first_detection": stats.t_first_detection,

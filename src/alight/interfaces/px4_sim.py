@@ -10,6 +10,14 @@ scenario (:class:`alight.sim.world.World`). Facts from PX4 v1.16.0, as the fact 
   arrived, the simulator waits for the answer to each step before the next: PX4's clock advances only
   with the simulator's. Before the first answer (PX4 still starting its modules) the steps are paced at
   wall-clock rate. The world ticks at 200 Hz (``TICK_DT``), so PX4 gets its IMU at 200 Hz.
+- **The mission starts when PX4 is armed.** PX4 boots, aligns its estimator and is armed by the
+  companion while the world stands still: the vehicle at rest at its start (its accelerometer feels the
+  ground's contact force, with the IMU's noise from a child of the seed of its own), the platform at its
+  position of t = 0, PX4's clock advancing from the first step. The first HIL_ACTUATOR_CONTROLS that says
+  armed starts the world: the scenario's t = 0 is PX4's time then (:attr:`Px4Simulator.t0_us`), so
+  neither PX4's start-up nor the companion's wait for "ready to arm" counts against ``duration_s``, and
+  the platform does not drive off while PX4 boots. Every stamp the simulator sends (sensors, camera
+  frames, the ground-truth log) is PX4's time; the verdict's times are the mission's.
 - **Sensors out.** HIL_SENSOR every tick: accelerometer (specific force, FRD, m/s^2: the IMU model's,
   which feels the feet's contact force as a real accelerometer does), gyroscope (FRD, rad/s), the Earth's
   magnetic field at PX4's default home in the body frame (gauss), barometric pressure (hPa, ISA) and
@@ -75,7 +83,7 @@ from alight.sim.quadrotor import (  # noqa: E402
     step_contact,
 )
 from alight.sim.sensors import imu_sample_kernel  # noqa: E402
-from alight.sim.world import PHYSICS_DT, Shot, World  # noqa: E402
+from alight.sim.world import PHYSICS_DT, TICK_DT, Shot, World  # noqa: E402
 from alight.types import FloatArray, Outcome, quat_to_rotmat  # noqa: E402
 
 SIM_PORT_BASE = 4560
@@ -89,7 +97,10 @@ GPS_EVERY, RANGE_EVERY, TRUTH_EVERY = 20, 4, 4  # ticks of 5 ms: 10 Hz, 50 Hz, 5
 MAG_NOISE_GAUSS, BARO_NOISE_HPA, GPS_NOISE_M, GPS_VEL_NOISE_MPS = 0.001, 0.005, 0.02, 0.02
 SEED_PX4 = 11
 """The child of the scenario's seed (after the world's :data:`~alight.sim.world.SEED_CHILDREN`) that
-this simulator's own sensors (magnetometer, barometer, GNSS) draw from."""
+this simulator's own sensors (magnetometer, barometer, GNSS) draw from; the next child is the IMU's noise
+while the world waits for PX4 to be armed."""
+TICK_US = int(round(TICK_DT * 1e6))
+"""One world tick in PX4's microseconds (5,000)."""
 
 
 def magnetic_field_ned_gauss() -> FloatArray:
@@ -205,6 +216,9 @@ class Px4SimConfig:
     """The companion must open the camera stream within this (wall s; it warms its kernels up first)."""
     boot_timeout_s: float = 60.0
     """PX4's first HIL_ACTUATOR_CONTROLS must come within this much simulated time (s)."""
+    arm_timeout_s: float = 180.0
+    """PX4 must be armed (by the companion) within this much of PX4's time (s): the world waits for it
+    (module docstring, "The mission starts when PX4 is armed")."""
     lockstep_timeout_s: float = 10.0
     """PX4 must answer each step within this (wall s): beyond it PX4 has crashed or hung."""
 
@@ -395,7 +409,11 @@ class Px4Simulator:
         )
         self.stats = LockstepStats()
         self.armed = False
+        self.t0_us: int | None = None
+        """PX4's time (µs) at the mission's t = 0: when PX4 was first armed (None before)."""
+        self._rest_rng = np.random.default_rng(np.random.SeedSequence(scenario.seed).spawn(SEED_PX4 + 2)[-1])
         self.ack_us = -1
+        self._controls: FloatArray = np.zeros(16)
         self._held: list[tuple[float, np.ndarray]] = []
         self.log: dict[str, list[Any]] = {k: [] for k in _TRUTH_KEYS}
 
@@ -404,17 +422,32 @@ class Px4Simulator:
         return self.frames.port
 
     def _event(self, kind: str, **info: Any) -> None:
-        self.stats.events.append({"t": round(self.world.t, 3), "kind": kind, **info})
+        self.stats.events.append(
+            {"t": round(self.world.t, 3), "t_px4": round(self._px4_s(), 3), "kind": kind, **info}
+        )
+
+    @property
+    def t_us(self) -> int:
+        """PX4's time now (µs): the boot's last step, then the mission's start plus the world's time."""
+        if self.t0_us is None:
+            return self.stats.steps * TICK_US
+        return self.t0_us + int(round(self.world.t * 1e6))
+
+    def _px4_s(self) -> float:
+        return self.t_us * 1e-6
 
     def run(self) -> dict[str, Any]:
-        """Wait for PX4 and the companion, fly until the world decides the end; returns the verdict."""
+        """Wait for PX4 and the companion, wait for PX4 to be armed on a world at rest, fly until the
+        world decides the end; returns the verdict."""
         w = self.world
         w.warm_up()
         failure = self._wait_for_px4() or self._wait_for_companion()
         wall0 = time.monotonic()
+        if failure is None:
+            failure = self._boot(wall0)
         while failure is None and not w.done:
             failure = self._step(wall0)
-        self.stats.wall_s, self.stats.sim_s = time.monotonic() - wall0, w.t
+        self.stats.wall_s, self.stats.sim_s = time.monotonic() - wall0, self._px4_s()
         if failure is not None:
             self._event("px4_failure", reason=failure)
             w.end(Outcome.ERROR, failure)
@@ -438,14 +471,57 @@ class Px4Simulator:
         self._event("companion_connected")
         return None
 
+    def _boot(self, wall0: float) -> str | None:
+        """PX4's start-up on a world at rest, until PX4 is armed (module docstring): the sensors of the
+        vehicle standing at its start, PX4's clock advancing a tick at a time, the world's not."""
+        w = self.world
+        while self.t0_us is None:
+            imu = self._imu_at_rest()
+            self.stats.steps += 1
+            failure = self._send_sensors(self.stats.steps, self.t_us, imu)
+            if failure is not None:
+                return failure
+            self._pace(wall0)
+            if self.armed:
+                self.t0_us = self.t_us
+                self._event("mission_start", boot_s=round(self.t0_us * 1e-6, 3))
+            elif self._px4_s() > self.config.arm_timeout_s:
+                return (
+                    f"px4 was not armed within {self.config.arm_timeout_s:g} s of its clock (the companion "
+                    "did not arm it, or PX4 refused: see px4.log)"
+                )
+        w.apply_controls(self._controls, True)
+        return None
+
+    def _imu_at_rest(self) -> FloatArray:
+        """An IMU sample of the vehicle at rest at its start, with the feet's contact force (the world's
+        state is not advanced; the noise is this simulator's own)."""
+        w = self.world
+        bias, _, scale = w.imu.kernel_inputs_many(1)
+        inputs = w.inputs.copy()
+        inputs[IN_DECK : IN_DECK + N_DK] = w._deck_rows[0]  # the deck where it is at t = 0
+        _, imu = motor_tick(
+            w.x.copy(), np.zeros(4), inputs, w.sim_params, bias.copy(),
+            self._rest_rng.standard_normal(12), scale.copy(), PHYSICS_DT, w.n_sub, w.contact_params,
+            np.zeros(2),
+        )  # fmt: skip
+        return imu
+
     def _step(self, wall0: float) -> str | None:
         """One world tick: physics with PX4's last outputs, the sensors to PX4, PX4's answer."""
         w = self.world
         imu = w.step()
-        k, t_us = w.k, int(round(w.t * 1e6))
-        if k % TRUTH_EVERY == 0:
+        if w.k % TRUTH_EVERY == 0:
             self._log()
         self._camera()
+        self.stats.steps += 1
+        failure = self._send_sensors(w.k, self.t_us, imu)
+        if failure is None:
+            self._pace(wall0)
+        return failure
+
+    def _send_sensors(self, k: int, t_us: int, imu: FloatArray) -> str | None:
+        """Tick ``k``'s sensor messages at PX4 time ``t_us``, and PX4's answer (lockstep)."""
         mav = self.link.mav
         self.sensors.hil_sensor(mav, t_us, imu)
         if k % GPS_EVERY == 0:
@@ -455,14 +531,15 @@ class Px4Simulator:
         if k % TRUTH_EVERY == 0:
             self.sensors.ground_truth(mav, t_us)
         self.link.flush()
-        self.stats.steps += 1
-        failure = self._lockstep(t_us)
+        return self._lockstep(t_us)
+
+    def _pace(self, wall0: float) -> None:
+        """Hold PX4's clock to ``speed`` times the wall clock (real time until PX4 first answers)."""
         speed = self.config.speed if self.stats.first_actuator_t_s is not None else 1.0
-        if failure is None and speed > 0:
-            ahead = w.t / speed - (time.monotonic() - wall0)
+        if speed > 0:
+            ahead = self._px4_s() / speed - (time.monotonic() - wall0)
             if ahead > 0:
                 time.sleep(ahead)
-        return failure
 
     def _lockstep(self, t_us: int) -> str | None:
         """Take PX4's answers; once it has answered once, wait for the answer to ``t_us``."""
@@ -475,7 +552,7 @@ class Px4Simulator:
             if link.closed:
                 return "px4 closed the simulator link (it exited or crashed)"
             if not waiting:
-                if self.stats.first_actuator_t_s is None and self.world.t > cfg.boot_timeout_s:
+                if self.stats.first_actuator_t_s is None and t_us * 1e-6 > cfg.boot_timeout_s:
                     return f"px4 sent no actuator output within {cfg.boot_timeout_s:g} s of simulated time"
                 return None
             if self.ack_us >= t_us:
@@ -499,7 +576,12 @@ class Px4Simulator:
         if armed != self.armed:
             self._event("armed" if armed else "disarmed")
             self.armed = armed
-        self.world.apply_controls(controls, armed)
+        self._controls = controls
+        if self.t0_us is not None:  # while the world waits for the arming, its rotors stay still
+            self.world.apply_controls(controls, armed)
+
+    def _t0_s(self) -> float:
+        return 0.0 if self.t0_us is None else self.t0_us * 1e-6
 
     def _camera(self) -> None:
         w = self.world
@@ -510,12 +592,12 @@ class Px4Simulator:
                 self._held.append((t_cap, w.develop(shot, t_cap, used=True)))
         while self._held and w.t - self._held[0][0] >= FRAME_HOLD_S - 1e-9:
             t_cap, image = self._held.pop(0)
-            self.frames.send_frame(t_cap, image)
+            self.frames.send_frame(t_cap + self._t0_s(), image)  # stamped with PX4's clock
 
     def _log(self) -> None:
         w, x = self.world, self.world.x
         lg = self.log
-        lg["t"].append(w.t)
+        lg["t"].append(w.t + self._t0_s())  # PX4's clock, as the companion's log
         lg["p_WB"].append(x[SL_P].copy())
         lg["v_WB"].append(x[SL_V].copy())
         lg["p_WP"].append(w.truths.p_WP[w.k].copy())
@@ -534,6 +616,7 @@ class Px4Simulator:
             **w.verdict(),
             "energy_flight_J": flight_energy_J(motor_t, motor_N) if motor_t.size > 1 else None,
             "simulated_time_s": w.t,
+            "px4_boot_s": None if self.t0_us is None else self.t0_us * 1e-6,
             "sitl_wall_time_s": self.stats.wall_s,
             "sitl_flavour": "px4-sitl",
             "sitl_events": [*self.stats.events, self.stats.record()],
