@@ -11,8 +11,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from pymavlink.dialects.v20 import common as mavlink
 
 from alight.airframe import DEFAULT_AIRFRAME
+from alight.errors import ConfigError
 from alight.interfaces.fake_autopilot import Capture, FakeAutopilot
 from alight.interfaces.mavlink_bridge import (
     MASK_P_YAW,
@@ -94,7 +96,7 @@ def test_streams_before_offboard_and_arms_only_when_allowed(arm: bool) -> None:
     mode_requests = commands(cap, 176)
     assert holds and mode_requests
     t_stream = holds[0].time_boot_ms * 1e-3
-    t_mode = bridge.events[[e["event"] for e in bridge.events].index("command")]["t"]
+    t_mode = next(e["t"] for e in bridge.events if e["event"] == "command" and e["command"] == 176)
     assert t_mode - t_stream >= 1.0  # PX4 wants more than a second of setpoints before OFFBOARD
     times = np.array([m.time_boot_ms for m in holds if m.time_boot_ms * 1e-3 <= t_mode]) * 1e-3
     assert np.max(np.diff(times)) < 0.5  # > 2 Hz
@@ -398,3 +400,48 @@ def test_a_frame_read_ahead_of_the_autopilots_clock_waits_for_it() -> None:
     assert bridge.stats.rejected["frame"] == sum(
         bridge.stats.rejected[k] for k in ("frame_order", "frame_ahead", "frame_late")
     )
+
+
+def test_the_bridge_asks_the_autopilot_for_its_stream_rates() -> None:
+    # PX4's onboard defaults (HIGHRES_IMU 50 Hz, ODOMETRY 30 Hz, DISTANCE_SENSOR 10 Hz) are below the
+    # bridge's 100 Hz control: it asks for its rates, with each of the first three HEARTBEATs
+    bridge, cap, cam = make_bridge(arm=True)
+    fly(bridge, cap, cam, FakeAutopilot(), 6.0)
+    asked = commands(cap, 511)  # MAV_CMD_SET_MESSAGE_INTERVAL
+    want = {
+        int(getattr(mavlink, f"MAVLINK_MSG_ID_{n}")): 1e6 / hz for n, hz in BridgeConfig().stream_rates_hz
+    }
+    assert len(asked) == 3 * len(want)
+    assert {(int(m.param1), m.param2) for m in asked} == set(want.items())
+    assert want[int(mavlink.MAVLINK_MSG_ID_HIGHRES_IMU)] == 5000.0
+    bridge, cap, cam = make_bridge(arm=True, stream_rates_hz=())
+    fly(bridge, cap, cam, FakeAutopilot(), 3.0)
+    assert commands(cap, 511) == []
+    with pytest.raises(ConfigError, match="stream_rates_hz"):
+        BridgeConfig(stream_rates_hz=(("NOT_A_MESSAGE", 10.0),))
+
+
+def test_with_px4_the_written_times_are_the_missions() -> None:
+    # the bridge runs on the autopilot's clock; PX4's world starts the mission at the arming, px4_boot_s
+    # into that clock: the log, the mode history and the events are written in the mission's time
+    from alight.interfaces.bridge_run import _outputs
+
+    bridge, cap, cam = make_bridge(arm=True)
+    fly(bridge, cap, cam, FakeAutopilot(), 3.0)
+    s = load_scenario(SCENARIO)
+    plain, arrays0, _ = _outputs(s, bridge, bridge.config, {"outcome": "timeout"}, None, 1.0)
+    boot = 1.25
+    shifted, arrays1, _ = _outputs(
+        s, bridge, bridge.config, {"outcome": "timeout", "px4_boot_s": boot}, None, 1.0
+    )
+    np.testing.assert_allclose(arrays1["t"], arrays0["t"] - boot)
+    assert [m["t"] for m in shifted["mode_history"]] == pytest.approx(
+        [m["t"] - boot for m in plain["mode_history"]]
+    )
+    timed = [
+        (a["t"], b["t"])
+        for a, b in zip(plain["bridge"]["events"], shifted["bridge"]["events"], strict=True)
+        if a["t"] is not None
+    ]
+    assert timed and all(b == pytest.approx(a - boot) for a, b in timed)
+    assert shifted["sitl"]["px4_boot_s"] == boot and plain["sitl"]["px4_boot_s"] is None

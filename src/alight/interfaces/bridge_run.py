@@ -173,6 +173,14 @@ def _outputs(
     arrays, rmse = _merged_log(bridge, truth)
     stats, summary = bridge.pipeline.stats, bridge.pipeline.summary()
     v = verdict or {}
+    # The bridge keeps the autopilot's clock; with PX4 as the autopilot the mission began px4_boot_s
+    # into it (the world waited for the arming): every time written is the mission's, as the verdict's
+    boot = float(v.get("px4_boot_s") or 0.0)
+    arrays["t"] = arrays["t"] - boot
+
+    def mission_t(t: float | None) -> float | None:
+        return None if t is None else t - boot
+
     outcome = v.get("outcome")
     if bridge.phase is Phase.LINK_LOST and outcome is None:
         outcome = "link_lost"
@@ -193,11 +201,11 @@ def _outputs(
         "contact_reason": v.get("contact_reason"),
         "outcome_reason": v.get("outcome_reason"),
         "time_first_contact_s": v.get("time_first_contact_s"),
-        "time_touchdown_onboard_s": summary.time_touchdown_onboard_s,
+        "time_touchdown_onboard_s": mission_t(summary.time_touchdown_onboard_s),
         "time_motors_off_s": v.get("time_motors_off_s"),
         "bounces": v.get("bounces"),
-        "time_first_detection_s": stats.t_first_detection,
-        "time_landing_start_s": stats.t_landing_start,
+        "time_first_detection_s": mission_t(stats.t_first_detection),
+        "time_landing_start_s": mission_t(stats.t_landing_start),
         "time_to_land_s": v.get("time_to_land_s"),
         "energy_flight_J": v.get("energy_flight_J"),
         "energy_compute_J": None,
@@ -211,8 +219,10 @@ def _outputs(
         "wall_time_s": wall_s,
         "block_time_s": {k: round(x, 6) for k, x in stats.block_time_s.items()},
         "alight_version": alight.__version__,
-        "mode_history": [{"t": t, "mode": m.value, "reason": why} for t, m, why in summary.mode_history],
-        "bridge": _bridge_record(bridge, config),
+        "mode_history": [
+            {"t": mission_t(t), "mode": m.value, "reason": why} for t, m, why in summary.mode_history
+        ],
+        "bridge": _bridge_record(bridge, config, boot),
         "sitl": None
         if verdict is None
         else {
@@ -223,8 +233,8 @@ def _outputs(
         },
     }
     events = {
-        "t_first_detection": stats.t_first_detection,
-        "t_landing_start": stats.t_landing_start,
+        "t_first_detection": mission_t(stats.t_first_detection),
+        "t_landing_start": mission_t(stats.t_landing_start),
         "t_touchdown": v.get("time_to_land_s"),
     }
     return result, arrays, events
@@ -264,8 +274,9 @@ def _merged_log(
     return arrays, rmse
 
 
-def _bridge_record(bridge: MavlinkBridge, config: BridgeConfig) -> dict[str, Any]:
-    """What the bridge did: its settings, its final phase and its message counts."""
+def _bridge_record(bridge: MavlinkBridge, config: BridgeConfig, boot_s: float = 0.0) -> dict[str, Any]:
+    """What the bridge did: its settings, its final phase and its message counts (its events' times
+    the mission's: the autopilot's clock less ``boot_s``)."""
     return {
         "mode": config.mode,
         "autopilot": config.autopilot,
@@ -280,5 +291,7 @@ def _bridge_record(bridge: MavlinkBridge, config: BridgeConfig) -> dict[str, Any
         "setpoints_sent": bridge.stats.setpoints_sent,
         "hold_setpoints_sent": bridge.stats.holds,
         "landing_targets_sent": bridge.stats.landing_targets_sent,
-        "events": bridge.events[-200:],
+        "events": [
+            {**e, "t": e["t"] - boot_s} if e.get("t") is not None else e for e in bridge.events[-200:]
+        ],
     }

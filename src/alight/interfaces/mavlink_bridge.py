@@ -104,6 +104,17 @@ class BridgeConfig:
     """Subtracted from a companion-clock camera's timestamps (driver latency)."""
     stop_setpoints_after_s: float | None = None
     """Fault injection (tests): stop sending setpoints this long (autopilot time) after engaging."""
+    stream_rates_hz: tuple[tuple[str, float], ...] = (
+        ("HIGHRES_IMU", 200.0),
+        ("ODOMETRY", 50.0),
+        ("LOCAL_POSITION_NED", 50.0),
+        ("ATTITUDE_QUATERNION", 50.0),
+        ("DISTANCE_SENSOR", 50.0),
+    )
+    """The rates the bridge asks the autopilot for (``MAV_CMD_SET_MESSAGE_INTERVAL``, sent with its first
+    :data:`INTERVAL_REQUESTS` HEARTBEATs), as a companion computer does: PX4's onboard defaults are
+    HIGHRES_IMU 50 Hz, ODOMETRY 30 Hz, DISTANCE_SENSOR 10 Hz, too slow for the 100 Hz control and the
+    descent's range finder. Empty: the autopilot's own rates."""
 
     def __post_init__(self) -> None:
         if self.mode not in ("offboard", "landing-target"):
@@ -115,6 +126,9 @@ class BridgeConfig:
         for name in ("control_rate_hz", "camera_timeout_s", "ego_timeout_s", "link_timeout_s"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"bridge: {name} must be > 0")
+        for name, hz in self.stream_rates_hz:
+            if getattr(mavlink, f"MAVLINK_MSG_ID_{name}", None) is None or not (0.0 < hz <= 1000.0):
+                raise ConfigError(f"bridge: stream_rates_hz: {name} at {hz} Hz is not a MAVLink message rate")
 
 
 class Phase(enum.StrEnum):
@@ -150,6 +164,8 @@ class BridgeStats:
         self.rejected[kind] = self.rejected.get(kind, 0) + 1
 
 
+INTERVAL_REQUESTS = 3
+"""The bridge asks for its stream rates with each of the autopilot's first this many HEARTBEATs."""
 FRAME_WAIT_MAX = 8
 """Frames stamped ahead of the autopilot's clock that wait for it (module docstring); a ninth is refused:
 the clock has stopped, not lagged (at 20 Hz, 0.4 s of frames)."""
@@ -302,6 +318,11 @@ class MavlinkBridge:
             self.stats.foreign += 1
             return
         self.stats.ok("HEARTBEAT")
+        if self.stats.accepted["HEARTBEAT"] <= INTERVAL_REQUESTS:
+            # sent again with the next HEARTBEATs: a command on UDP can be lost, and the rates are idempotent
+            for name, hz in self.config.stream_rates_hz:
+                msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+                self._command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, float(msg_id), 1e6 / hz)
         self.ap_armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         self.ap_custom_mode = int(msg.custom_mode)
         self._t_heartbeat_ap = self.t_ap
