@@ -11,7 +11,6 @@ self-contained file (figures inlined); the PNGs are written beside it.
 
 from __future__ import annotations
 
-import base64
 import html
 from collections.abc import Mapping
 from pathlib import Path
@@ -29,7 +28,13 @@ from alight.evaluation.recorded_plots import (
     plot_recorded_top_view,
 )
 from alight.evaluation.report import _CSS as _MISSION_CSS
-from alight.evaluation.report import REPORT_HTML, _result_table_html, format_quantity, page_head
+from alight.evaluation.report import (
+    REPORT_HTML,
+    _result_table_html,
+    figure_html,
+    format_quantity,
+    page_head,
+)
 
 RECORDED_BADGE = "#0969da"
 MAX_MESSAGES_SHOWN = 200
@@ -149,20 +154,11 @@ def _cards_html(result: Mapping[str, Any], rec: RecordedFlight) -> list[str]:
 
 
 def _figures_html(figures: Mapping[str, bytes]) -> list[str]:
-    esc = html.escape
     out: list[str] = []
     for stem, heading in FIGURE_HEADINGS:
         png = figures.get(stem)
-        if png is None:
-            continue
-        data = base64.b64encode(png).decode("ascii")
-        out += [
-            f"<h2>{esc(heading)}</h2>",
-            "<figure>",
-            f'<img src="data:image/png;base64,{data}" alt="{esc(heading)}">',
-            f"<figcaption>{esc(stem)}.png</figcaption>",
-            "</figure>",
-        ]
+        if png is not None:
+            out += figure_html(stem, heading, png)
     return out
 
 

@@ -428,22 +428,28 @@ def _cards_html(result: Mapping[str, Any], log: Mapping[str, np.ndarray]) -> lis
     return out
 
 
+def figure_html(stem: str, heading: str, png: bytes) -> list[str]:
+    """One figure of a report: its heading, the PNG inlined as data, and the file name as its caption (the
+    mission, replay and recorded-flight reports)."""
+    esc = html.escape
+    data = base64.b64encode(png).decode("ascii")
+    return [
+        f"<h2>{esc(heading)}</h2>",
+        "<figure>",
+        f'<img src="data:image/png;base64,{data}" alt="{esc(heading)}">',
+        f"<figcaption>{esc(stem)}.png</figcaption>",
+        "</figure>",
+    ]
+
+
 def _figures_html(figures: Mapping[str, bytes], replay_gif: str | None) -> list[str]:
     """The figures inlined as PNG data, in :data:`FIGURES` order, then the linked replay GIF if any."""
     esc = html.escape
     out: list[str] = []
     for stem, heading, _ in FIGURES:
         png = figures.get(stem)
-        if png is None:
-            continue
-        data = base64.b64encode(png).decode("ascii")
-        out += [
-            f"<h2>{esc(heading)}</h2>",
-            "<figure>",
-            f'<img src="data:image/png;base64,{data}" alt="{esc(heading)}">',
-            f"<figcaption>{esc(stem)}.png</figcaption>",
-            "</figure>",
-        ]
+        if png is not None:
+            out += figure_html(stem, heading, png)
     if replay_gif:
         # Linked, not inlined: the GIF is megabytes and sits next to the report in the mission directory.
         out += [

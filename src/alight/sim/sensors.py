@@ -513,7 +513,7 @@ def _sensor_ray(p_WB: FloatArray, q_WB: FloatArray, origin_B: FloatArray) -> tup
         o[0] += ax * origin_B[k]
         o[1] += ay * origin_B[k]
         o[2] += az * origin_B[k]
-    zx, zy, zz = _body_axis(q_WB, np.int64(2))
+    zx, zy, zz = _body_axis(q_WB, np.int64(2))  # an int64, not a literal 2: _body_axis compiles once
     d[0], d[1], d[2] = -zx, -zy, -zz
     return o, d
 
@@ -536,17 +536,7 @@ def true_range_to_deck(
 def _true_range(
     p_WB: FloatArray, q_WB: FloatArray, origin_B: FloatArray, p_WP: FloatArray, yaw: float, pad_size_m: float
 ) -> float:
-    o = np.empty(3)
-    d = np.empty(3)
-    for k in range(3):
-        o[k] = p_WB[k]
-    for k in range(3):
-        ax, ay, az = _body_axis(q_WB, k)
-        o[0] += ax * origin_B[k]
-        o[1] += ay * origin_B[k]
-        o[2] += az * origin_B[k]
-    zx, zy, zz = _body_axis(q_WB, np.int64(2))  # an int64, not a literal 2: _body_axis compiles once
-    d[0], d[1], d[2] = -zx, -zy, -zz
+    o, d = _sensor_ray(p_WB, q_WB, origin_B)
     return range_to_surface(o, d, p_WP, yaw, pad_size_m)
 
 

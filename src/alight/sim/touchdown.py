@@ -166,12 +166,44 @@ def judge_contact(
             p_xy, platform.p_WP, platform.yaw, pad_size_m, limits.gear_half_width
         ):
             reasons.append("off_footprint")
-        if vz > limits.max_vertical_speed_mps:
-            reasons.append("vertical_speed")
-        if vh > limits.max_horizontal_speed_mps:
-            reasons.append("horizontal_speed")
-        if tilt > math.radians(limits.max_tilt_deg):
-            reasons.append("tilt")
+        _exceeded(reasons, vz, vh, tilt, limits)
+    return _contact(
+        surface, reasons, err, v_rel, tilt,
+        math.hypot(float(platform.v_WP[0]), float(platform.v_WP[1])), float(platform.yaw_rate),
+    )  # fmt: skip
+
+
+def _exceeded(
+    reasons: list[str],
+    v_normal: float | None,
+    v_along: float | None,
+    tilt: float | None,
+    limits: ContactLimits,
+) -> None:
+    """Appends to ``reasons`` the limits that a contact's speeds across and along the surface and its
+    tilt to it exceed (None: not measured)."""
+    if v_normal is not None and v_normal > limits.max_vertical_speed_mps:
+        reasons.append("vertical_speed")
+    if v_along is not None and v_along > limits.max_horizontal_speed_mps:
+        reasons.append("horizontal_speed")
+    if tilt is not None and tilt > math.radians(limits.max_tilt_deg):
+        reasons.append("tilt")
+
+
+def _contact(
+    surface: str,
+    reasons: list[str],
+    err: float,
+    v_rel: FloatArray,
+    tilt: float,
+    platform_speed_mps: float,
+    platform_turn_rate_rad_s: float,
+    deck: DeckFigures | None = None,
+) -> Contact:
+    """The verdict of a contact with its figures (``v_rel``: the vehicle's velocity relative to what it
+    touched, W)."""
+    vz = abs(float(v_rel[2]))
+    vh = math.hypot(float(v_rel[0]), float(v_rel[1]))
     return Contact(
         outcome=Outcome.CRASHED if reasons else Outcome.LANDED,
         surface=surface,
@@ -181,8 +213,9 @@ def judge_contact(
         rel_horizontal_speed_mps=vh,
         rel_speed_mps=math.sqrt(vz * vz + vh * vh),
         tilt_rad=tilt,
-        platform_speed_mps=math.hypot(float(platform.v_WP[0]), float(platform.v_WP[1])),
-        platform_turn_rate_rad_s=float(platform.yaw_rate),
+        platform_speed_mps=platform_speed_mps,
+        platform_turn_rate_rad_s=platform_turn_rate_rad_s,
+        deck=deck,
     )
 
 
@@ -278,28 +311,12 @@ def _judge_on_deck(
             reasons.append("ground")
     vn, vt, rel_tilt = checked
     if not reasons or reasons == ["off_footprint"]:
-        if vn is not None and vn > limits.max_vertical_speed_mps:
-            reasons.append("vertical_speed")
-        if vt is not None and vt > limits.max_horizontal_speed_mps:
-            reasons.append("horizontal_speed")
-        if rel_tilt is not None and rel_tilt > math.radians(limits.max_tilt_deg):
-            reasons.append("tilt")
-    vz = abs(float(v_rel[2]))
-    vh = math.hypot(float(v_rel[0]), float(v_rel[1]))
-    return Contact(
-        outcome=Outcome.CRASHED if reasons else Outcome.LANDED,
-        surface=surface,
-        reason=",".join(reasons),
-        touchdown_error_m=err,
-        rel_vertical_speed_mps=vz,
-        rel_horizontal_speed_mps=vh,
-        rel_speed_mps=math.sqrt(vz * vz + vh * vh),
-        tilt_rad=tilt,
-        platform_speed_mps=math.hypot(float(deck.v_WP[0]), float(deck.v_WP[1])),
-        # the deck's yaw rate: its body rate about the vertical
-        platform_turn_rate_rad_s=float(deck.w_WP_W[2]),
+        _exceeded(reasons, vn, vt, rel_tilt, limits)
+    return _contact(
+        surface, reasons, err, v_rel, tilt, math.hypot(float(deck.v_WP[0]), float(deck.v_WP[1])),
+        float(deck.w_WP_W[2]),  # the deck's yaw rate: its body rate about the vertical
         deck=fig,
-    )
+    )  # fmt: skip
 
 
 def judge_settled_on_deck(
