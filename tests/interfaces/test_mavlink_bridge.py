@@ -445,3 +445,23 @@ def test_with_px4_the_written_times_are_the_missions() -> None:
     ]
     assert timed and all(b == pytest.approx(a - boot) for a, b in timed)
     assert shifted["sitl"]["px4_boot_s"] == boot and plain["sitl"]["px4_boot_s"] is None
+
+
+def test_on_ground_contact_the_pipelines_thrust_flies_also_with_position_setpoints() -> None:
+    # the land detector's test of a contact is its thrust spool-down: with PX4's position controller
+    # flying it would not happen (the vehicle disarmed 0.2 m above the deck); from ground contact on the
+    # bridge sends the pipeline's thrust and rates, and position setpoints again once it lets go
+    from alight.mission.touchdown_detector import TouchdownState
+
+    bridge, cap, cam = make_bridge(arm=True, setpoint="position")
+    ap = FakeAutopilot()
+    fly(bridge, cap, cam, ap, 3.0)
+    assert bridge.phase is Phase.ENGAGED
+    n_att = len(cap.of_type("SET_ATTITUDE_TARGET"))
+    assert n_att == 0 and cap.of_type("SET_POSITION_TARGET_LOCAL_NED")
+    bridge.pipeline.touchdown.state = TouchdownState.GROUND_CONTACT
+    bridge._control(bridge.t_ap + 0.01)
+    assert cap.messages[-1].get_type() == "SET_ATTITUDE_TARGET"
+    bridge.pipeline.touchdown.state = TouchdownState.AIRBORNE
+    bridge._control(bridge.t_ap + 0.02)
+    assert cap.messages[-1].get_type() == "SET_POSITION_TARGET_LOCAL_NED"

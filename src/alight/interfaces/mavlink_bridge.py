@@ -684,7 +684,12 @@ class MavlinkBridge:
             return
         if self._suppressed(t):
             return
-        if cfg.setpoint == "rates" or cmd.motors_off:
+        # On ground contact the land detector tests the contact by spooling the thrust down (a vehicle in
+        # the air sinks and the detector lets go; one on the deck stays): with position setpoints PX4's
+        # controller would hold the descent and the test would pass in the air (a disarm 0.2 m above the
+        # deck with real PX4), so from ground contact on the pipeline's own thrust and rates fly
+        contact = self.pipeline.touchdown.state is not TouchdownState.AIRBORNE
+        if cfg.setpoint == "rates" or cmd.motors_off or contact:
             thrust = 0.0 if cmd.motors_off else min(max(cmd.thrust_N / self.max_thrust_N, 0.0), 1.0)
             w = np.zeros(3) if cmd.motors_off else frames.flu_to_frd(cmd.w_WB_B_cmd)
             self.mav.set_attitude_target_send(
