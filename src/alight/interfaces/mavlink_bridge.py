@@ -249,6 +249,7 @@ class MavlinkBridge:
         self._disarm_sent = False
         self.frame_times: list[float] = []
         self._waiting_frames: list[tuple[float, np.ndarray]] = []  # stamped ahead of the clock (docstring)
+        self._detector_state = TouchdownState.AIRBORNE
 
     # -- bookkeeping -----------------------------------------------------------------------------------
     def _event(self, kind: str, **info: Any) -> None:
@@ -688,7 +689,11 @@ class MavlinkBridge:
         # the air sinks and the detector lets go; one on the deck stays): with position setpoints PX4's
         # controller would hold the descent and the test would pass in the air (a disarm 0.2 m above the
         # deck with real PX4), so from ground contact on the pipeline's own thrust and rates fly
-        contact = self.pipeline.touchdown.state is not TouchdownState.AIRBORNE
+        detector = self.pipeline.touchdown
+        contact = detector.state is not TouchdownState.AIRBORNE
+        if detector.state is not self._detector_state:  # what the land detector saw, for the log
+            self._detector_state = detector.state
+            self._event("land_detector", state=detector.state.value, **detector.evidence)
         if cfg.setpoint == "rates" or cmd.motors_off or contact:
             thrust = 0.0 if cmd.motors_off else min(max(cmd.thrust_N / self.max_thrust_N, 0.0), 1.0)
             w = np.zeros(3) if cmd.motors_off else frames.flu_to_frd(cmd.w_WB_B_cmd)

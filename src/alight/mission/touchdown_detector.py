@@ -131,6 +131,8 @@ class TouchdownDetector:
         self._low_since: float | None = None
         self.t_landed: float | None = None
         self.reason = ""
+        self.evidence: dict[str, bool] = {}
+        """The last update's tests (still, impact, at_floor, held, in_air), for logs."""
 
     def on_imu(self, t: float, f_B: FloatArray) -> None:
         """An accelerometer sample: specific force in B (m/s^2). Scalars only: this runs at the IMU
@@ -188,6 +190,13 @@ class TouchdownDetector:
         in_air = range_m is not None and math.isfinite(range_m) and range_m > cfg.airborne_range_m
         held = thrust_N < cfg.held_thrust_fraction * cfg.hover_thrust_N
         contact = still and (impact or at_floor or held) and not in_air
+        self.evidence = {
+            "still": still,
+            "impact": impact,
+            "at_floor": at_floor,
+            "held": held,
+            "in_air": in_air,
+        }
         if not contact:
             self._contact_since = self._spool_t0 = self._low_since = None
             self.state = TouchdownState.AIRBORNE
