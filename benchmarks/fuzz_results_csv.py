@@ -173,6 +173,12 @@ def _set_cell(line: Line, header: list[str], column: str, value: str) -> None:
     line.damaged = True
 
 
+def _signed(column: str) -> bool:
+    """A column whose value has a meaningful sign, where -1 is a plausible value: a vertical speed, the
+    platform's turn rate at contact (negative: turning clockwise)."""
+    return "vertical" in column or "turn_rate" in column
+
+
 def _bad_cell(rng: np.random.Generator, v: Variant) -> None:
     """A cell of a column that has a rule made unreadable or implausible for it."""
     numeric = [
@@ -189,7 +195,7 @@ def _bad_cell(rng: np.random.Generator, v: Variant) -> None:
     elif column == "seed":
         value = str(_one(rng, ["garbage", "-1", "1.5", "12345678901234567890123", "4"]))
     else:
-        value = str(_one(rng, [x for x in NUMERIC_BAD if not (x == "-1" and "vertical" in column)]))
+        value = str(_one(rng, [x for x in NUMERIC_BAD if not (x == "-1" and _signed(column))]))
     for line in _pick_rows(rng, v):
         _set_cell(line, v.header, column, value)
 
