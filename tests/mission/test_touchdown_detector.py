@@ -99,6 +99,19 @@ def test_low_thrust_without_sinking_is_a_contact():
     assert state is TouchdownState.LANDED and det.reason == "held up"
 
 
+def test_a_thrust_that_does_not_fly_is_no_evidence_until_ground_contact():
+    # an autopilot's position controller flies (the bridge's position setpoints): the pipeline's low
+    # thrust command says nothing of a surface, and the vehicle stays airborne; an impact still makes a
+    # ground contact, and from then on (its spool-down flies) the thrust counts again
+    det = TouchdownDetector(CFG)
+    det.thrust_flown = False
+    state, _ = _run(det, 0.0, 1.5, range_m=-math.inf, thrust=0.7 * CFG.hover_thrust_N)
+    assert state is TouchdownState.AIRBORNE and det.evidence["held"] is False
+    det.on_imu(1.5, G * 2.0)  # the feet meet the deck
+    state, _ = _run(det, 1.5, 1.5, range_m=-math.inf, thrust=0.7 * CFG.hover_thrust_N)
+    assert state is TouchdownState.LANDED and det.evidence["held"] is True
+
+
 def test_high_thrust_after_contact_does_not_land():
     det = TouchdownDetector(CFG)
     det.on_imu(0.0, G * 3.0)

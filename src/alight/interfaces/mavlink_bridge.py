@@ -250,6 +250,8 @@ class MavlinkBridge:
         self.frame_times: list[float] = []
         self._waiting_frames: list[tuple[float, np.ndarray]] = []  # stamped ahead of the clock (docstring)
         self._detector_state = TouchdownState.AIRBORNE
+        # with position setpoints the autopilot's controller flies until ground contact (see _control)
+        pipeline.touchdown.thrust_flown = config.setpoint == "rates"
 
     # -- bookkeeping -----------------------------------------------------------------------------------
     def _event(self, kind: str, **info: Any) -> None:

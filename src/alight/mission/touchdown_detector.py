@@ -102,6 +102,11 @@ class TouchdownDetector:
 
     def __init__(self, config: TouchdownConfig | None = None) -> None:
         self.config = config or TouchdownConfig()
+        self.thrust_flown = True
+        """Whether the commanded thrust is what lifts the vehicle. False while an autopilot's position
+        controller flies the bridge's position setpoints: the pipeline's own thrust then tells nothing of
+        a surface (with PX4 it read "held up" 0.4 m above the deck), until ground contact, from which on
+        the bridge flies the pipeline's thrust."""
         self._zb_lp: tuple[float, float, float] | None = None
         self._t_att = -math.inf
         self.reset()
@@ -188,7 +193,10 @@ class TouchdownDetector:
         impact = t - self.t_impact <= cfg.impact_memory_s
         still = math.isfinite(v_z_rel_mps) and abs(v_z_rel_mps) < cfg.max_vertical_speed_mps
         in_air = range_m is not None and math.isfinite(range_m) and range_m > cfg.airborne_range_m
-        held = thrust_N < cfg.held_thrust_fraction * cfg.hover_thrust_N
+        # the commanded thrust is evidence only where it flies: not while an autopilot's position
+        # controller holds the vehicle (thrust_flown False) before the spool-down takes over
+        flown = self.thrust_flown or self.state is not TouchdownState.AIRBORNE
+        held = flown and thrust_N < cfg.held_thrust_fraction * cfg.hover_thrust_N
         contact = still and (impact or at_floor or held) and not in_air
         self.evidence = {
             "still": still,
