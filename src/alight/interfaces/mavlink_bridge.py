@@ -59,7 +59,7 @@ from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import CameraSource, SocketCameraSource  # noqa: E402
 from alight.mission.pipeline import Pipeline  # noqa: E402
 from alight.mission.touchdown_detector import TouchdownState  # noqa: E402
-from alight.types import FloatArray, Mode, quat_to_rotmat, yaw_of  # noqa: E402
+from alight.types import Command, FloatArray, Mode, quat_to_rotmat, yaw_of  # noqa: E402
 
 GRAVITY = 9.81
 MAX_ACCEL = 16 * GRAVITY  # a +-16 g accelerometer's range (m/s^2)
@@ -687,11 +687,17 @@ class MavlinkBridge:
             return
         if self._suppressed(t):
             return
+        self._send_command(t, cmd)
+
+    def _send_command(self, t: float, cmd: Command) -> None:
+        """The pipeline's command to the autopilot as body rates and thrust, or as its reference's position,
+        velocity and acceleration (``setpoint``)."""
+        cfg, pipe = self.config, self.pipeline
         # On ground contact the land detector tests the contact by spooling the thrust down (a vehicle in
         # the air sinks and the detector lets go; one on the deck stays): with position setpoints PX4's
         # controller would hold the descent and the test would pass in the air (a disarm 0.2 m above the
         # deck with real PX4), so from ground contact on the pipeline's own thrust and rates fly
-        detector = self.pipeline.touchdown
+        detector = pipe.touchdown
         contact = detector.state is not TouchdownState.AIRBORNE
         if detector.state is not self._detector_state:  # what the land detector saw, for the log
             self._detector_state = detector.state
