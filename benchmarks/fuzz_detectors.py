@@ -203,10 +203,9 @@ DECODERS = ("alight", "opencv")
 """``alight``: :func:`alight.perception.image_decode.decode_image_bytes`, the reader of ``alight detect``
 and of the replay's compressed frames (a JPEG that libjpeg flags as damaged is refused); ``opencv``:
 ``cv2.imdecode``, a lenient driver that hands on what libjpeg could make of the damaged data."""
-_decoder = {"name": "alight"}
 
 
-def _decode(data: bytes) -> Any:
+def _decode(data: bytes, decoder: str = "alight") -> Any:
     """What the decoder hands on for a damaged file: the image, the partial image (``opencv``), a
     :class:`Refused` (``alight``), or None (libjpeg's and libpng's complaints on stderr are silenced)."""
     if not data:
@@ -216,7 +215,7 @@ def _decode(data: bytes) -> Any:
     with open(os.devnull, "wb") as null:
         os.dup2(null.fileno(), 2)
         try:
-            if _decoder["name"] == "opencv":
+            if decoder == "opencv":
                 return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
             img, reason = decode_image_bytes(data)
             return img if img is not None else Refused(reason or "refused")
@@ -230,16 +229,16 @@ def _small(img: Any, side: int = 480) -> Any:
     return img if s >= 1.0 else cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
 
 
-def corrupt_photo(how: str, data: bytes, img: Any, rng: np.random.Generator) -> Any:
+def corrupt_photo(how: str, data: bytes, img: Any, rng: np.random.Generator, decoder: str = "alight") -> Any:
     """One damage to a real photo (file bytes ``data``, decoded ``img``), at most 480 px on its long side
     (the cost of the marker detectors grows with the area)."""
     if how == "truncated":
-        return _decode(data[: int(rng.integers(0, len(data)))])
+        return _decode(data[: int(rng.integers(0, len(data)))], decoder)
     if how == "flipped_bytes":
         b = bytearray(data)
         for i in rng.integers(100, len(b), size=int(rng.integers(1, 40))):
             b[int(i)] = int(rng.integers(0, 256))
-        return _decode(bytes(b))
+        return _decode(bytes(b), decoder)
     small = _small(img)
     if how == "channels_swapped":
         return np.ascontiguousarray(small[..., ::-1])
@@ -271,7 +270,9 @@ PHOTO_CORRUPTIONS = [
 ]  # fmt: skip
 
 
-def images(n: int, seed: int, photos: dict[str, tuple[bytes, Any]]) -> Iterator[tuple[str, str | None, Any]]:
+def images(
+    n: int, seed: int, photos: dict[str, tuple[bytes, Any]], decoder: str = "alight"
+) -> Iterator[tuple[str, str | None, Any]]:
     """``n`` images ``(kind, photo name or None, image)``: every kind in turn first, then at random (a
     quarter of them corrupted photos when there are photos)."""
     rng = np.random.default_rng(seed)
@@ -292,7 +293,7 @@ def images(n: int, seed: int, photos: dict[str, tuple[bytes, Any]]) -> Iterator[
         else:
             name = names[int(rng.integers(len(names)))]
             how = PHOTO_CORRUPTIONS[k]
-            yield f"photo_{how}", name, corrupt_photo(how, *photos[name], rng)
+            yield f"photo_{how}", name, corrupt_photo(how, *photos[name], rng, decoder)
 
 
 # ---- real targets --------------------------------------------------------------------------------------
@@ -356,7 +357,13 @@ class Counts:
 
 
 def run_detector(
-    name: str, n: int, seed: int, limit_s: float, photos: dict[str, tuple[bytes, Any]], n_targets: int
+    name: str,
+    n: int,
+    seed: int,
+    limit_s: float,
+    photos: dict[str, tuple[bytes, Any]],
+    n_targets: int,
+    decoder: str = "alight",
 ) -> dict[str, Any]:
     det = make_detector(name)
     counts = Counts()
@@ -373,7 +380,7 @@ def run_detector(
         counts.c["targets"] += 1
         if status != "ok" or not obs:
             counts.fail("targets_missed", f"photo:{stem}:{status}")
-    for kind, photo, image in images(n, seed, photos):
+    for kind, photo, image in images(n, seed, photos, decoder):
         counts.c["images"] += 1
         if isinstance(image, Refused):
             counts.c["decode_refused"] += 1
@@ -406,13 +413,12 @@ def run(
     """The whole harness; the JSON summary as a dict (``decoder``: one of :data:`DECODERS`)."""
     if decoder not in DECODERS:
         raise ValueError(f"decoder must be one of {DECODERS}, got {decoder!r}")
-    _decoder["name"] = decoder
     signal.signal(signal.SIGALRM, _on_alarm)
     cv2.setNumThreads(1)
     photos = load_photos(testdata if testdata is not None else ROOT.parent / "shared" / "testdata" / "real")
     t0 = time.perf_counter()
     names = [d for d in detector_names() if only is None or d in only]
-    per = {name: run_detector(name, n, seed, limit_s, photos, n_targets) for name in names}
+    per = {name: run_detector(name, n, seed, limit_s, photos, n_targets, decoder) for name in names}
     keys = ("crashes", "hangs", "malformed", "false_detections", "targets_missed")
     totals = {k: sum(int(b[k]) for b in per.values()) for k in keys}
     return {

@@ -46,6 +46,10 @@ _ZERO3 = np.zeros(3)
 Fraction = Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)]
 
 
+EVIDENCE_NAMES = ("still", "impact", "at_floor", "held", "in_air")
+"""The names of :attr:`TouchdownDetector.evidence`, in the order update keeps them."""
+
+
 class TouchdownState(StrEnum):
     AIRBORNE = "airborne"
     GROUND_CONTACT = "ground_contact"
@@ -136,8 +140,7 @@ class TouchdownDetector:
         self._low_since: float | None = None
         self.t_landed: float | None = None
         self.reason = ""
-        self.evidence: dict[str, bool] = {}
-        """The last update's tests (still, impact, at_floor, held, in_air), for logs."""
+        self._tests: tuple[bool, ...] = ()
 
     def on_imu(self, t: float, f_B: FloatArray) -> None:
         """An accelerometer sample: specific force in B (m/s^2). Scalars only: this runs at the IMU
@@ -176,6 +179,12 @@ class TouchdownDetector:
         # e_z expressed in B: the third row of R_WB
         return np.array([-k * r21, k * r20, 0.0])
 
+    @property
+    def evidence(self) -> dict[str, bool]:
+        """The last update's tests, by name, for logs (kept as a tuple: update runs at the controller's
+        rate through the descent)."""
+        return dict(zip(EVIDENCE_NAMES, self._tests, strict=False))
+
     def update(self, t: float, v_z_rel_mps: float, range_m: float | None, thrust_N: float) -> TouchdownState:
         """Advance to ``t``. ``v_z_rel_mps``: the ego estimate's vertical speed relative to the platform
         estimate's (m/s); ``range_m``: the latest range reading from the feet (m), ``-inf`` when the
@@ -198,13 +207,7 @@ class TouchdownDetector:
         flown = self.thrust_flown or self.state is not TouchdownState.AIRBORNE
         held = flown and thrust_N < cfg.held_thrust_fraction * cfg.hover_thrust_N
         contact = still and (impact or at_floor or held) and not in_air
-        self.evidence = {
-            "still": still,
-            "impact": impact,
-            "at_floor": at_floor,
-            "held": held,
-            "in_air": in_air,
-        }
+        self._tests = (still, impact, at_floor, held, in_air)
         if not contact:
             self._contact_since = self._spool_t0 = self._low_since = None
             self.state = TouchdownState.AIRBORNE

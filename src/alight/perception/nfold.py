@@ -79,7 +79,7 @@ lines to straight lines and the tip to the tip, so its image is a function of th
 alone, the same bright and dark arcs on every circle round it (up to blur). A bar's edges run parallel to
 the bar, so the angular width of a gap shrinks as 1 / r. :func:`ray_consistency` compares the two circles
 at 0.35 and 0.85 of the kernel's half size round the sub-pixel tip, each split at its own mid-grey: the
-fraction of angles where they agree was 0.875-1.0 (median 0.97-0.99) on 79 rendered markers from 1.5 to
+fraction of angles where they agree was 0.875-1.0 (median 0.97-0.99) on 77 rendered markers from 1.5 to
 18 m, tilted up to 0.45 rad, with sensor noise, and 1.0 on the real photo of a marker; 0.58 on the
 board's crossing and 0.56-0.67 on drawn crossings of 5-6 px gaps. (A crossing of 3 px gaps is, at that
 scale, the image of a marker of 6 px radius: no test at the pixel level tells them apart.) A candidate
