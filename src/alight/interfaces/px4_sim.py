@@ -434,7 +434,7 @@ class Px4Simulator:
         return self.t0_us + int(round(self.world.t * 1e6))
 
     def _px4_s(self) -> float:
-        return self.t_us * 1e-6
+        return self.t_us / 1e6
 
     def run(self) -> dict[str, Any]:
         """Wait for PX4 and the companion, wait for PX4 to be armed on a world at rest, fly until the
@@ -484,7 +484,7 @@ class Px4Simulator:
             self._pace(wall0)
             if self.armed:
                 self.t0_us = self.t_us
-                self._event("mission_start", boot_s=round(self.t0_us * 1e-6, 3))
+                self._event("mission_start", boot_s=round(self.t0_us / 1e6, 3))
             elif self._px4_s() > self.config.arm_timeout_s:
                 return (
                     f"px4 was not armed within {self.config.arm_timeout_s:g} s of its clock (the companion "
@@ -581,7 +581,7 @@ class Px4Simulator:
             self.world.apply_controls(controls, armed)
 
     def _t0_s(self) -> float:
-        return 0.0 if self.t0_us is None else self.t0_us * 1e-6
+        return 0.0 if self.t0_us is None else self.t0_us / 1e6
 
     def _camera(self) -> None:
         w = self.world
@@ -616,7 +616,7 @@ class Px4Simulator:
             **w.verdict(),
             "energy_flight_J": flight_energy_J(motor_t, motor_N) if motor_t.size > 1 else None,
             "simulated_time_s": w.t,
-            "px4_boot_s": None if self.t0_us is None else self.t0_us * 1e-6,
+            "px4_boot_s": None if self.t0_us is None else self.t0_us / 1e6,
             "sitl_wall_time_s": self.stats.wall_s,
             "sitl_flavour": "px4-sitl",
             "sitl_events": [*self.stats.events, self.stats.record()],
