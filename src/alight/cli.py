@@ -6,7 +6,7 @@
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
     alight campaign CAMPAIGN.yaml [--out DIR] [--engine local|dask] [--scheduler ADDR] [--workers N]
-                    [--no-progress] [--limit N]
+                    [--no-progress] [--limit N] [--autopilot sim|emulator|px4 [--px4 DIR] [--px4-mode M]]
     alight report DIR
     alight replay LOG --out DIR [--mapping FILE] [--scenario FILE]
     alight sitl SCENARIO.yaml --port PORT [--flavour px4|ardupilot] [--speed X] [--no-lockstep]
@@ -19,9 +19,11 @@ Exit status 0 on success, 2 on bad input with one line on stderr that says what 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -166,8 +168,6 @@ MISSION_FN_ENV = "ALIGHT_CAMPAIGN_MISSION_FN"
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
-    import os
-
     from alight.campaign.run import CampaignInterrupted, run_campaign
 
     if args.workers is not None and args.workers < 1:
@@ -185,17 +185,24 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
         # the cap the whole campaign is expanded as always (resuming with another --limit stays possible).
         if count_missions(read_campaign_spec(args.campaign)[0]) > MAX_MISSIONS:
             campaign = load_campaign(args.campaign, limit=args.limit)
+    through: dict[str, Any] = {}
+    if args.autopilot != "sim":
+        through = _autopilot_campaign(args, mission_fn)
+        mission_fn = through["mission_fn"]
     try:
-        result = run_campaign(
-            campaign,
-            args.out,
-            engine=args.engine,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            limit=args.limit,
-            progress=not args.no_progress,
-            mission_fn=mission_fn,
-        )
+        with _environment(through.get("env", {})):
+            result = run_campaign(
+                campaign,
+                args.out,
+                engine=args.engine,
+                workers=args.workers,
+                scheduler=args.scheduler,
+                limit=args.limit,
+                progress=not args.no_progress,
+                mission_fn=mission_fn,
+                warmup=True if through else None,
+                flown_with=through.get("record"),
+            )
     except CampaignInterrupted as stop:
         print(f"alight campaign: {stop.message}", file=sys.stderr)
         return 130
@@ -224,6 +231,44 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     if errors:
         print(f"alight campaign: {errors} of {recorded} recorded missions are errors", file=sys.stderr)
     return 0
+
+
+def _autopilot_campaign(args: argparse.Namespace, mission_fn: str | None) -> dict[str, Any]:
+    """``alight campaign --autopilot emulator|px4``: the mission function, the environment its sandboxes
+    inherit (the setting) and the lock's record of it (alight.interfaces.autopilot_missions)."""
+    from alight.interfaces.autopilot_missions import AUTOPILOT_ENV, MISSION_FNS, AutopilotSetting
+
+    if mission_fn is not None:
+        raise AlightError(f"--autopilot: the missions are the autopilot's; unset {MISSION_FN_ENV}")
+    if args.engine != "local":
+        raise AlightError("--autopilot: missions through an autopilot run on the local engine only")
+    px4_dir = None
+    if args.autopilot == "px4":
+        from alight.interfaces.px4_run import find_px4_build
+
+        px4_dir = str(find_px4_build(args.px4).root)  # refused here in one line, not in every mission
+    setting = AutopilotSetting(kind=args.autopilot, mode=args.px4_mode, speed=args.px4_speed, px4_dir=px4_dir)
+    record = {k: v for k, v in setting.record().items() if k != "px4_dir"}  # the machine's, not the setting
+    return {
+        "mission_fn": MISSION_FNS[args.autopilot],
+        "env": {AUTOPILOT_ENV: setting.to_env()},
+        "record": record,
+    }
+
+
+@contextlib.contextmanager
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    """``values`` in this process's environment (which the campaign's sandboxes inherit) while inside."""
+    before = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in before.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -368,6 +413,18 @@ def _campaign_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.add_argument("--limit", type=int, default=None, help="only the first N missions of the campaign")
+    p.add_argument(
+        "--autopilot", choices=("sim", "emulator", "px4"), default="sim",
+        help="sim: alight's own simulator; emulator: alight sitl + the bridge; px4: PX4 SITL + the bridge",
+    )  # fmt: skip
+    p.add_argument(
+        "--px4", default=None, metavar="DIR", help="PX4 SITL build (bin/px4); else $ALIGHT_PX4_DIR"
+    )
+    p.add_argument(
+        "--px4-mode", choices=("offboard", "landing-target"), default="offboard",
+        help="how the autopilot lands (emulator and px4): offboard setpoints or LANDING_TARGET only",
+    )  # fmt: skip
+    p.add_argument("--px4-speed", type=float, default=1.0, help="px4: sim s per wall s at most (0: free)")
 
 
 def _report_arguments(p: argparse.ArgumentParser) -> None:

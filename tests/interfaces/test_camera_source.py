@@ -3,6 +3,7 @@ dropped without an exception; OpenCV reads a video file and refuses a missing on
 
 from __future__ import annotations
 
+import math
 import socket
 import struct
 import time
@@ -14,11 +15,15 @@ import pytest
 
 from alight.errors import InputError
 from alight.interfaces.camera_source import (
+    KIND_PLATFORM_FIX,
     FrameServer,
     OpenCvCameraSource,
     SocketCameraSource,
     decode_frame,
+    decode_platform_fix,
     encode_frame,
+    encode_message,
+    encode_platform_fix,
     open_camera,
 )
 
@@ -104,3 +109,45 @@ def test_opencv_reads_a_video_file_and_refuses_a_missing_one(tmp_path: Path) -> 
         open_camera(str(tmp_path / "missing.avi"))
     with pytest.raises(InputError, match="tcp:HOST:PORT"):
         open_camera("tcp:nohostport")
+
+
+def test_platform_fix_codec_round_trips_and_refuses_malformed_fixes() -> None:
+    p, v = np.array([1.0, -2.0, 0.5]), np.array([6.0, 0.1, 0.0])
+    cov = np.diag([0.25, 0.25, 0.3])
+    data = encode_platform_fix(12.5, p, v, cov)
+    fix = decode_platform_fix(data[8:])
+    assert fix is not None and fix.t_stamp == 12.5
+    assert np.array_equal(fix.p_WP, p) and np.array_equal(fix.v_WP, v) and np.array_equal(fix.cov_p_WP, cov)
+    assert decode_platform_fix(data[8:-1]) is None  # short
+    assert decode_platform_fix(encode_platform_fix(math.nan, p, v, cov)[8:]) is None
+    assert decode_platform_fix(encode_platform_fix(1.0, p, np.array([math.inf, 0.0, 0.0]), cov)[8:]) is None
+    skew = cov.copy()
+    skew[0, 1] = 0.1
+    assert decode_platform_fix(encode_platform_fix(1.0, p, v, skew)[8:]) is None  # not symmetric
+    assert decode_platform_fix(encode_platform_fix(1.0, p, v, -cov)[8:]) is None  # negative variance
+
+
+def test_platform_fixes_cross_the_stream_in_order_beside_the_frames() -> None:
+    server = FrameServer("127.0.0.1", 0)
+    server.hello = None
+    src = SocketCameraSource("127.0.0.1", server.port)
+    try:
+        deadline = time.monotonic() + 5.0
+        while not server.connected and time.monotonic() < deadline:
+            time.sleep(0.01)
+        cov = np.eye(3) * 0.25
+        img = np.zeros((4, 4), dtype=np.uint8)
+        assert server.send_platform_fix(0.1, np.zeros(3), np.ones(3), cov)
+        assert server.send_frame(0.15, img)
+        server._send(encode_message(KIND_PLATFORM_FIX, b"\0" * 7))  # a malformed fix: dropped, counted
+        assert server.send_platform_fix(0.2, np.ones(3), np.ones(3), cov)
+        fixes: list = []
+        while len(fixes) < 2 and time.monotonic() < deadline:
+            fixes += src.read_platform_fixes()
+            time.sleep(0.005)
+        assert [f.t_stamp for f in fixes] == [0.1, 0.2] and np.array_equal(fixes[1].p_WP, np.ones(3))
+        assert _read(src)[0] == 0.15 and src.dropped_messages == 1 and src.open
+        assert src.read_platform_fixes() == []
+    finally:
+        src.close()
+        server.close()

@@ -15,6 +15,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from alight.airframe import DEFAULT_AIRFRAME
 from alight.errors import ConfigError
+from alight.interfaces.camera_source import PlatformFix
 from alight.interfaces.fake_autopilot import Capture, FakeAutopilot
 from alight.interfaces.mavlink_bridge import (
     MASK_P_YAW,
@@ -465,3 +466,25 @@ def test_on_ground_contact_the_pipelines_thrust_flies_also_with_position_setpoin
     bridge.pipeline.touchdown.state = TouchdownState.AIRBORNE
     bridge._control(bridge.t_ap + 0.02)
     assert cap.messages[-1].get_type() == "SET_POSITION_TARGET_LOCAL_NED"
+
+
+def test_platform_fixes_reach_the_estimator_when_the_clock_reaches_their_stamp() -> None:
+    # platform.telemetry crosses the camera's stream (a radio of the platform's own): a fix waits for the
+    # autopilot's clock, goes to on_telemetry once, in order; a late, repeated or far-ahead one is refused
+    bridge, cap, cam = make_bridge(arm=True)
+    ap = FakeAutopilot()
+    fly(bridge, cap, cam, ap, 1.0)
+    got: list[tuple[float, np.ndarray]] = []
+    bridge.pipeline.on_telemetry = lambda t, p, v, cov: got.append((t, p)) or True  # type: ignore[method-assign]
+    t0, cov = bridge.t_ap, np.eye(3) * 0.25
+
+    def fix(t: float) -> PlatformFix:
+        return PlatformFix(t, np.full(3, t), np.zeros(3), cov)
+
+    bridge._platform_fixes(t0, [fix(t0 - 0.2), fix(t0 + 0.05), fix(t0 + 9.0)])
+    assert [t for t, _ in got] == [t0 - 0.2] and np.array_equal(got[0][1], np.full(3, t0 - 0.2))
+    assert bridge.stats.rejected["platform_fix_ahead"] == 1 and len(bridge._waiting_fixes) == 1
+    bridge._platform_fixes(t0 + 0.06, [fix(t0 - 0.2), fix(t0 - 7.0)])  # repeated; older than 5 s
+    assert [t for t, _ in got] == [t0 - 0.2, t0 + 0.05]
+    assert bridge.stats.rejected["platform_fix_order"] == 1 and bridge.stats.rejected["platform_fix_late"] == 1
+    assert bridge.stats.accepted["platform_fix"] == 2 and bridge.stats.rejected["platform_fix"] == 3

@@ -16,11 +16,15 @@ from types import SimpleNamespace
 
 import pytest
 
+from alight.airframes import load_airframe
 from alight.errors import ConfigError
+from alight.interfaces.px4_airframe import px4_environment
 from alight.interfaces.px4_run import (
     PX4_DIR_ENV,
     PX4_UDP_PORTS,
     Px4FlyConfig,
+    _takeoff_altitude_m,
+    claim_instance,
     find_px4_build,
     fly_px4,
     fly_px4_command,
@@ -89,6 +93,34 @@ def test_free_instance_skips_one_whose_port_is_taken() -> None:
         s.bind(("0.0.0.0", PX4_UDP_PORTS[0] + i))
         assert free_instance(i) > i
     assert SIM_PORT_BASE + free_instance(i) >= SIM_PORT_BASE + i
+
+
+def test_two_missions_never_claim_the_same_instance() -> None:
+    # the ports of an instance are free until PX4 binds them, seconds after the check: the claim is a lock
+    first, lock1 = claim_instance()
+    second, lock2 = claim_instance()
+    try:
+        assert second != first
+        with pytest.raises(ConfigError, match=f"instance {first} is in use"):
+            claim_instance(wanted=first)
+    finally:
+        lock1.close()
+        lock2.close()
+    again, lock3 = claim_instance(wanted=first)  # released by closing (or by the process's death)
+    lock3.close()
+    assert again == first
+
+
+def test_px4_takes_off_to_the_search_height_in_landing_target_mode() -> None:
+    s = _scenario()
+    assert _takeoff_altitude_m(s, Px4FlyConfig(mode="landing-target")) == 12.0  # explore_altitude_m
+    assert _takeoff_altitude_m(s, Px4FlyConfig(mode="offboard")) is None
+    low = Scenario.model_validate(
+        {**s.model_dump(mode="json", exclude_none=True), "mission": {"takeoff_altitude_m": 7.5}}
+    )
+    assert _takeoff_altitude_m(low, Px4FlyConfig(mode="landing-target")) == 7.5
+    env = px4_environment(load_airframe(s.airframe), takeoff_altitude_m=12.0)
+    assert env["PX4_PARAM_MIS_TAKEOFF_ALT"] == "12"
 
 
 def _scenario() -> Scenario:

@@ -470,6 +470,7 @@ def run_campaign(
     warmup: bool | None = None,
     memory_limit_mib: float | None = None,
     views_fn: MissionFn | str | None = None,
+    flown_with: dict[str, Any] | None = None,
 ) -> CampaignRunResult:
     """Fly every mission of ``campaign`` not yet in ``out_dir/results.csv`` (default ``runs/<name>``).
 
@@ -483,8 +484,10 @@ def run_campaign(
     ``views_fn``: the mission function that flies a failure again to draw its views, for the first
     ``views_per_cell`` failures of each cell once the sweep is over (default:
     ``engines.fly_mission_views`` for the default missions, none for others); with ``views_per_cell: all``
-    it flies every mission instead. Raises ``AlightError`` for bad input and ``CampaignInterrupted`` on
-    Ctrl-C (after recording what finished and writing summary.json).
+    it flies every mission instead. ``flown_with``: how the missions are flown when not by alight's own
+    simulator (``alight campaign --autopilot``: the autopilot's setting), recorded in the lock so that a
+    resume flown another way is refused. Raises ``AlightError`` for bad input and ``CampaignInterrupted``
+    on Ctrl-C (after recording what finished and writing summary.json).
     """
     t0 = time.monotonic()
     if not isinstance(campaign, Campaign):
@@ -514,7 +517,7 @@ def run_campaign(
     missions = campaign.missions[:limit] if limit is not None else campaign.missions
     store = ResultsStore.open(out / RESULTS_CSV, columns_for(campaign.swept_parameters))
     try:
-        _start_directory(out, campaign, store)
+        _start_directory(out, campaign, store, flown_with)
         result = _sweep(out, campaign, missions, store, runner, progress, t0)
         views_per_cell = campaign.spec.views_per_cell
         if views_spec is not None and isinstance(views_per_cell, int):
@@ -556,14 +559,24 @@ def _mission_functions(
     return fn_spec, views_spec
 
 
-def _start_directory(out: Path, campaign: Campaign, store: ResultsStore) -> None:
-    """Check that ``out``'s recorded missions are this campaign's; write its campaign.yaml and lock."""
+def _start_directory(
+    out: Path, campaign: Campaign, store: ResultsStore, flown_with: dict[str, Any] | None = None
+) -> None:
+    """Check that ``out``'s recorded missions are this campaign's, flown the same way; write its
+    campaign.yaml and lock (with ``flown_with``)."""
     _check_resume(out, campaign, store.rows)
+    if store.rows:
+        before = (read_lock(out) or {}).get("flown_with")
+        if before != flown_with:
+            raise ConfigError(
+                f"{out}: its missions were flown with {before or 'alight sim'}, now with "
+                f"{flown_with or 'alight sim'}: use another --out"
+            )
     text = campaign.text
     if text is None:
         text = yaml.safe_dump(campaign.spec.model_dump(mode="json", exclude_none=True), sort_keys=False)
     (out / CAMPAIGN_YAML).write_text(text, encoding="utf-8")
-    write_lock(out, lock_data(campaign))
+    write_lock(out, {**lock_data(campaign), "flown_with": flown_with})
 
 
 def _sweep(

@@ -72,6 +72,11 @@ def run_bridge(
             raise ConfigError(
                 f"bridge: preset {scenario.preset!r} has no camera; the bridge needs a vision preset"
             )
+        if scenario.platform.telemetry is not None and not preset.pipeline.fuses_telemetry:
+            raise ConfigError(
+                f"platform.telemetry: preset {scenario.preset}'s platform estimator "
+                f"({type(preset.pipeline.platform_estimator).__name__}) cannot fuse telemetry"
+            )
         # Compile the pipeline's numba kernels before taking the link: a first compile takes tens of
         # seconds on a fresh install, during which a companion would not answer the autopilot (a lost
         # offboard stream) or, in lockstep with the emulator, would let its world run on without us.
@@ -94,12 +99,15 @@ def run_bridge(
         verdict = None
         truth = None
         if isinstance(cam, SocketCameraSource):
-            cam.wait_closed(10.0 if cam.result is not None else 0.5)
+            # A simulator sends its verdict once its world has ended, and then lingers: while its stream
+            # is open, wait for the verdict (the autopilot's link may have gone quiet first, as PX4's does
+            # once the world stops stepping it), else only a moment.
+            cam.wait_closed(10.0 if cam.result is not None else VERDICT_WAIT_S if cam.open else 0.5)
             verdict, truth = cam.result, cam.truth_log
     finally:
         cam.close()
     result, log_arrays, events = _outputs(
-        scenario, bridge, config, verdict, truth, time.perf_counter() - wall0
+        scenario, bridge, config, verdict, truth, time.perf_counter() - wall0, simulated=emulator
     )
     save_arrays(log_arrays, out)
     if report:
@@ -108,6 +116,9 @@ def run_bridge(
     return result
 
 
+VERDICT_WAIT_S = 30.0
+"""How long the bridge waits for a simulator's verdict after its loop ended with the stream still open
+(wall s): the world sends it after its end, which a loaded machine delays by seconds."""
 EMULATOR_SCENARIO_WAIT_S = 300.0
 """How long the bridge waits for the emulator's scenario once its camera stream is connected (s). The
 emulator sends it when it accepts the stream, after warming its own kernels up, which takes minutes on a
@@ -169,6 +180,7 @@ def _outputs(
     verdict: dict[str, Any] | None,
     truth: dict[str, np.ndarray] | None,
     wall_s: float,
+    simulated: bool = False,
 ) -> tuple[dict[str, Any], dict[str, np.ndarray], dict[str, float | None]]:
     arrays, rmse = _merged_log(bridge, truth)
     stats, summary = bridge.pipeline.stats, bridge.pipeline.summary()
@@ -181,15 +193,18 @@ def _outputs(
     def mission_t(t: float | None) -> float | None:
         return None if t is None else t - boot
 
-    outcome = v.get("outcome")
+    outcome, reason = v.get("outcome"), v.get("outcome_reason")
     if bridge.phase is Phase.LINK_LOST and outcome is None:
-        outcome = "link_lost"
+        # no verdict: a simulated mission without one is an error (the campaign's outcomes); a real
+        # vehicle's flight has no judge (outcome None) but says that its link was lost
+        outcome = "error" if simulated else "link_lost"
+        reason = "the autopilot's link was lost and the simulator sent no verdict"
     result: dict[str, Any] = {
         "scenario": scenario.model_dump(mode="json"),
         "seed": scenario.seed,
         "preset": scenario.preset,
         "outcome": outcome,
-        "success": v.get("success", False if outcome == "link_lost" else None),
+        "success": v.get("success", False if outcome in ("link_lost", "error") else None),
         "touchdown_error_m": v.get("touchdown_error_m"),
         "touchdown_rel_speed_mps": v.get("touchdown_rel_speed_mps"),
         "touchdown_rel_vertical_speed_mps": v.get("touchdown_rel_vertical_speed_mps"),
@@ -199,7 +214,7 @@ def _outputs(
         "touchdown_platform_turn_rate_rad_s": v.get("touchdown_platform_turn_rate_rad_s"),
         "contact_surface": v.get("contact_surface"),
         "contact_reason": v.get("contact_reason"),
-        "outcome_reason": v.get("outcome_reason"),
+        "outcome_reason": reason,
         "time_first_contact_s": v.get("time_first_contact_s"),
         "time_touchdown_onboard_s": mission_t(summary.time_touchdown_onboard_s),
         "time_motors_off_s": v.get("time_motors_off_s"),

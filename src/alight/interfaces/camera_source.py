@@ -17,7 +17,10 @@ traffic on a real vehicle and so do not belong on the MAVLink link.
 
 Wire format, little endian: ``kind`` (4 ASCII bytes), ``length`` (uint32), then ``length`` bytes.
 A ``FRAM`` payload is ``seq`` (uint32), ``t_capture`` (float64, s), ``height``, ``width``,
-``channels`` (uint32 each), then ``height*width*channels`` uint8 pixels, row-major.
+``channels`` (uint32 each), then ``height*width*channels`` uint8 pixels, row-major. A ``PFIX`` payload
+(the platform's own GNSS fix, ``platform.telemetry``, which a real vehicle sends by a radio of its own,
+not through the autopilot) is 16 float64: ``t_stamp`` (s, the stream's clock), ``p_WP``, ``v_WP`` (ENU,
+m and m/s) and the receiver's 3x3 position covariance (m^2), row-major.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import struct
 import threading
 import time
 from collections import deque
+from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
 import numpy as np
@@ -48,6 +52,21 @@ KIND_FRAME = b"FRAM"
 KIND_RESULT = b"RSLT"
 KIND_TRUTH_LOG = b"TLOG"
 KIND_SCENARIO = b"SCEN"
+KIND_PLATFORM_FIX = b"PFIX"
+"""The platform's own GNSS fix (``platform.telemetry``): on a real vehicle it reaches the companion by
+its own radio, not through the autopilot, so the simulator sends it on this side stream."""
+_FIX = struct.Struct("<16d")  # t_stamp, p_WP (3), v_WP (3), cov_p_WP (3x3, row-major)
+_KINDS = (KIND_FRAME, KIND_RESULT, KIND_TRUTH_LOG, KIND_SCENARIO, KIND_PLATFORM_FIX)
+
+
+@dataclass(frozen=True, slots=True)
+class PlatformFix:
+    """A platform GNSS fix as it crossed the stream (the bridge stamps ``t_stamp`` on its clock)."""
+
+    t_stamp: float
+    p_WP: np.ndarray
+    v_WP: np.ndarray
+    cov_p_WP: np.ndarray
 
 
 class CameraSource(Protocol):
@@ -73,6 +92,25 @@ def encode_frame(seq: int, t_capture: float, image: np.ndarray) -> bytes:
     h, w = img.shape[:2]
     c = 1 if img.ndim == 2 else img.shape[2]
     return encode_message(KIND_FRAME, _FRAME.pack(seq & 0xFFFFFFFF, t_capture, h, w, c) + img.tobytes())
+
+
+def encode_platform_fix(t_stamp: float, p_WP: np.ndarray, v_WP: np.ndarray, cov_p_WP: np.ndarray) -> bytes:
+    values = np.concatenate(([t_stamp], np.ravel(p_WP), np.ravel(v_WP), np.ravel(cov_p_WP))).astype(float)
+    return encode_message(KIND_PLATFORM_FIX, _FIX.pack(*values))
+
+
+def decode_platform_fix(payload: bytes) -> PlatformFix | None:
+    """The fix of a ``PFIX`` payload, or None when it is malformed (wrong size, a NaN or inf, a
+    covariance that is not symmetric with a non-negative diagonal)."""
+    if len(payload) != _FIX.size:
+        return None
+    v = np.array(_FIX.unpack(payload))
+    if not np.isfinite(v).all():
+        return None
+    cov = v[7:16].reshape(3, 3)
+    if not (np.allclose(cov, cov.T) and (np.diag(cov) >= 0.0).all()):
+        return None
+    return PlatformFix(float(v[0]), v[1:4].copy(), v[4:7].copy(), cov.copy())
 
 
 def decode_frame(payload: bytes) -> tuple[int, float, np.ndarray] | None:
@@ -159,6 +197,12 @@ class FrameServer:
         self._seq += 1
         return self._send(encode_frame(self._seq, t_capture, image))
 
+    def send_platform_fix(
+        self, t_stamp: float, p_WP: np.ndarray, v_WP: np.ndarray, cov_p_WP: np.ndarray
+    ) -> bool:
+        """Send one platform GNSS fix; False when no client is connected (lost, as a radio's would be)."""
+        return self._send(encode_platform_fix(t_stamp, p_WP, v_WP, cov_p_WP))
+
     def send_result(self, result: dict[str, Any]) -> bool:
         return self._send(encode_message(KIND_RESULT, json.dumps(result).encode()))
 
@@ -217,6 +261,7 @@ class SocketCameraSource:
         self.truth_log: dict[str, np.ndarray] | None = None
         self.scenario: dict[str, Any] | None = None
         """The emulator's scenario, sent when the stream opens."""
+        self._fixes: deque[PlatformFix] = deque()
         self.dropped_messages = 0
         self.last_seq = 0
 
@@ -237,7 +282,7 @@ class SocketCameraSource:
             self._buf += chunk
         while len(self._buf) >= _HEAD.size:
             kind, n = _HEAD.unpack_from(self._buf)
-            if n > MAX_MESSAGE_BYTES or kind not in (KIND_FRAME, KIND_RESULT, KIND_TRUTH_LOG, KIND_SCENARIO):
+            if n > MAX_MESSAGE_BYTES or kind not in _KINDS:
                 # Message boundaries are lost: nothing after this point can be trusted.
                 self.dropped_messages += 1
                 self._buf.clear()
@@ -260,6 +305,12 @@ class SocketCameraSource:
                     return
                 self.last_seq = frame[0]
                 self._frames.append((frame[1], frame[2]))
+            elif kind == KIND_PLATFORM_FIX:
+                fix = decode_platform_fix(payload)
+                if fix is None:
+                    self.dropped_messages += 1
+                    return
+                self._fixes.append(fix)
             elif kind in (KIND_RESULT, KIND_SCENARIO):
                 value = json.loads(payload.decode())
                 if isinstance(value, dict):
@@ -276,6 +327,13 @@ class SocketCameraSource:
     def read(self) -> tuple[float, np.ndarray] | None:
         self._pump()
         return self._frames.popleft() if self._frames else None
+
+    def read_platform_fixes(self) -> list[PlatformFix]:
+        """The platform fixes received since the last call, in the order sent."""
+        self._pump()
+        fixes = list(self._fixes)
+        self._fixes.clear()
+        return fixes
 
     def poll(self) -> None:
         """Receive what has arrived (frames stay queued for ``read``)."""

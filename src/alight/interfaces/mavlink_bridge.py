@@ -34,6 +34,11 @@ queue. A frame read before the IMU messages of its time have been handled is sta
 clock; it waits (at most :data:`FRAME_WAIT_MAX` frames, and no more than ``max_time_jump_s`` ahead) and is
 handled when the clock reaches its stamp, rather than refused. Refused frames are counted by reason
 (``frame_ahead``, ``frame_late``, ``frame_order``, ``frame_bad_time``) beside the total ``frame``.
+
+The platform's own GNSS fixes (``platform.telemetry``) come on the camera's stream too, as a real
+vehicle's come by a radio of their own rather than through the autopilot: each goes to ``on_telemetry``
+once the clock has reached its stamp, in order (``platform_fix``; refused: out of order, more than
+``PLATFORM_FIX_MAX_AGE_S`` old, or more than ``max_time_jump_s`` ahead).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ import math
 import os
 import select
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -56,7 +62,7 @@ from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
 from alight.airframe import DEFAULT_AIRFRAME, Airframe  # noqa: E402
 from alight.errors import ConfigError, EstimationError  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
-from alight.interfaces.camera_source import CameraSource, SocketCameraSource  # noqa: E402
+from alight.interfaces.camera_source import CameraSource, PlatformFix, SocketCameraSource  # noqa: E402
 from alight.mission.pipeline import Pipeline  # noqa: E402
 from alight.mission.touchdown_detector import TouchdownState  # noqa: E402
 from alight.types import Command, FloatArray, Mode, quat_to_rotmat, yaw_of  # noqa: E402
@@ -171,6 +177,10 @@ FRAME_WAIT_MAX = 8
 the clock has stopped, not lagged (at 20 Hz, 0.4 s of frames)."""
 
 
+PLATFORM_FIX_MAX_AGE_S = 5.0
+"""A platform fix older than this on arrival is refused (the telemetry model's latency is at most 5 s)."""
+
+
 def _finite(*values: float) -> bool:
     return all(isinstance(v, int | float) and math.isfinite(v) for v in values)
 
@@ -249,6 +259,7 @@ class MavlinkBridge:
         self._disarm_sent = False
         self.frame_times: list[float] = []
         self._waiting_frames: list[tuple[float, np.ndarray]] = []  # stamped ahead of the clock (docstring)
+        self._waiting_fixes: deque[PlatformFix] = deque()  # platform fixes waiting for the clock
         self._detector_state = TouchdownState.AIRBORNE
         # with position setpoints the autopilot's controller flies until ground contact (see _control)
         pipeline.touchdown.thrust_flown = config.setpoint == "rates"
@@ -519,8 +530,31 @@ class MavlinkBridge:
         while True:
             frame = cam.read()
             if frame is None:
-                return
+                break
             self._on_frame(t, *frame)
+        if isinstance(cam, SocketCameraSource):
+            self._platform_fixes(t, cam.read_platform_fixes())
+
+    def _platform_fixes(self, t: float, arrived: list[PlatformFix]) -> None:
+        """Hand the platform fixes whose stamp the clock has reached to the pipeline (module docstring)."""
+        for fix in arrived:
+            if fix.t_stamp > t + self.config.max_time_jump_s:
+                self.stats.bad("platform_fix")
+                self.stats.bad("platform_fix_ahead")
+            else:
+                self._waiting_fixes.append(fix)
+        waiting = self._waiting_fixes
+        while waiting and waiting[0].t_stamp <= t + 1e-6:
+            fix = waiting.popleft()
+            if t - fix.t_stamp > PLATFORM_FIX_MAX_AGE_S:
+                self.stats.bad("platform_fix")
+                self.stats.bad("platform_fix_late")
+            elif not self._fresh("platform_fix", fix.t_stamp):
+                self.stats.bad("platform_fix")
+                self.stats.bad("platform_fix_order")
+            else:
+                self.stats.ok("platform_fix")
+                self.pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
 
     def _on_frame(self, t: float, t_cap: float, image: np.ndarray) -> None:
         if cam_clock_is_companion(self.camera):

@@ -100,9 +100,10 @@ def motor_commands_N(controls: FloatArray, airframe: Airframe, to_alight: np.nda
     return f
 
 
-def px4_parameters(airframe: Airframe) -> dict[str, float]:
+def px4_parameters(airframe: Airframe, *, takeoff_altitude_m: float | None = None) -> dict[str, float]:
     """The PX4 parameters that tell PX4's allocation and hover thrust what ``airframe`` is (module
-    docstring), by name."""
+    docstring), by name; with ``takeoff_altitude_m``, PX4's own take-off climbs to it (``MIS_TAKEOFF_ALT``,
+    m above home; PX4's default is 2.5)."""
     to_alight = px4_to_alight_rotor(airframe)
     p = airframe.rotor_positions_B
     params: dict[str, float] = {}
@@ -114,14 +115,16 @@ def px4_parameters(airframe: Airframe) -> dict[str, float]:
     params["MPC_THR_HOVER"] = round(1.0 / airframe.thrust_to_weight, 3)
     params["IMU_INTEG_RATE"] = 200
     params["IMU_GYRO_RATEMAX"] = 200
+    if takeoff_altitude_m is not None:
+        params["MIS_TAKEOFF_ALT"] = round(float(takeoff_altitude_m), 2)
     return params
 
 
-def px4_environment(airframe: Airframe) -> dict[str, str]:
+def px4_environment(airframe: Airframe, *, takeoff_altitude_m: float | None = None) -> dict[str, str]:
     """The environment variables that start PX4 SITL as ``airframe`` with an external simulator."""
     px4 = PX4_AIRFRAMES[airframe_name_checked(airframe)]
     env = {"PX4_SIM_MODEL": px4.model}
-    for name, value in px4_parameters(airframe).items():
+    for name, value in px4_parameters(airframe, takeoff_altitude_m=takeoff_altitude_m).items():
         env[f"PX4_PARAM_{name}"] = f"{value:g}" if isinstance(value, float) else str(value)
     return env
 

@@ -54,7 +54,7 @@ from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
 import alight  # noqa: E402
 from alight.airframe import Airframe  # noqa: E402
 from alight.energy import flight_energy_J  # noqa: E402
-from alight.errors import InputError  # noqa: E402
+from alight.errors import ConfigError, InputError  # noqa: E402
 from alight.evaluation.runner import world_for_scenario  # noqa: E402
 from alight.interfaces import frames  # noqa: E402
 from alight.interfaces.camera_source import KIND_SCENARIO, FrameServer, encode_message  # noqa: E402
@@ -390,12 +390,20 @@ open)."""
 _TRUTH_KEYS = ("t", "p_WB", "v_WB", "p_WP", "v_WP", "w_WB_B", "f_wind_W", "motor_N")
 
 
+def check_px4_scenario(scenario: Scenario) -> None:
+    """Refuse, in one line, what the world cannot give PX4 and the companion through this interface."""
+    if scenario.optical_flow is not None:
+        # the world sends no HIL_OPTICAL_FLOW, so the module would fly without reaching anyone
+        raise ConfigError("optical_flow: not available with PX4 SITL (no HIL_OPTICAL_FLOW stream yet)")
+
+
 class Px4Simulator:
     """One mission of ``scenario`` with PX4 SITL as its autopilot (module docstring). Create it (it
     listens at once), start PX4, then :meth:`run`."""
 
     def __init__(self, scenario: Scenario, config: Px4SimConfig, airframe: Airframe | None = None) -> None:
         self.scenario, self.config = scenario, config
+        check_px4_scenario(scenario)
         self.world = Px4World(world_for_scenario(scenario, airframe))
         self.sensors = Px4Sensors(self.world, scenario.seed)
         self.link = Px4Link(config.host, SIM_PORT_BASE + config.instance)
@@ -513,6 +521,8 @@ class Px4Simulator:
         imu = w.step()
         if w.k % TRUTH_EVERY == 0:
             self._log()
+        for fix in w.telemetry_arrivals():  # by the platform's own radio, on the camera's stream
+            self.frames.send_platform_fix(fix.t_stamp + self._t0_s(), fix.p_WP, fix.v_WP, fix.cov_p_WP)
         self._camera()
         self.stats.steps += 1
         failure = self._send_sensors(w.k, self.t_us, imu)

@@ -422,10 +422,6 @@ class EmulatedAutopilot:
     def __init__(self, scenario: Scenario, config: SitlConfig, airframe: Airframe | None = None) -> None:
         if config.flavour not in ("px4", "ardupilot"):
             raise ConfigError(f"sitl: flavour must be px4 or ardupilot, got {config.flavour!r}")
-        if scenario.platform.telemetry is not None:
-            # The emulator has no MAVLink stream for the platform's GNSS fix, so it would not reach the
-            # companion: refuse it rather than fly without it.
-            raise ConfigError("platform.telemetry: not available through alight sitl (no MAVLink stream)")
         if scenario.optical_flow is not None:
             # likewise: the emulator does not send OPTICAL_FLOW_RAD
             raise ConfigError("optical_flow: not available through alight sitl (no MAVLink stream)")
@@ -1211,6 +1207,12 @@ class EmulatedAutopilot:
         self._last_hb_wall = time.monotonic()
         self._last_hb_t = self.world.t
 
+    def _platform_fixes(self) -> None:
+        """The platform's GNSS fixes that reach the aircraft now go to the companion on the camera's
+        stream (a real vehicle's come by a radio of their own, not through the autopilot)."""
+        for fix in self.world.telemetry_arrivals():
+            self.frames.send_platform_fix(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
+
     def _camera(self) -> None:
         w = self.world
         if w.renderer is None:
@@ -1317,6 +1319,7 @@ class EmulatedAutopilot:
                 imu = w.step()
                 if w.k % every_log == 0:
                     self._log()
+                self._platform_fixes()
                 self._camera()
                 if w.t - self._last_hb_t >= 1.0 or time.monotonic() - self._last_hb_wall > 0.5:
                     self._heartbeat()
@@ -1434,13 +1437,17 @@ def serve(scenario: Scenario, config: SitlConfig, airframe: Airframe | None = No
     """Run the emulated autopilot for one mission: wait for a companion, fly, send it the verdict and the
     ground-truth log on the camera stream, and return the verdict. ``airframe``: None flies the
     scenario's ``airframe:``."""
-    ap = EmulatedAutopilot(scenario, config, airframe)
+    return serve_autopilot(EmulatedAutopilot(scenario, config, airframe))
+
+
+def serve_autopilot(ap: EmulatedAutopilot) -> dict[str, Any]:
+    """:func:`serve` with an emulator already listening (so that its caller can read the ports it took)."""
     try:
         result = ap.run()
         ap.frames.send_result(json.loads(json.dumps(result, default=float)))
         ap.frames.send_truth_log(ap.truth_arrays())
         # Heartbeats after the end, so the peer sees the final state before the link goes quiet.
-        end = time.monotonic() + config.linger_s
+        end = time.monotonic() + ap.config.linger_s
         while True:
             ap._heartbeat()
             ap.mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, ap._landed_state())
