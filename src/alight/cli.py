@@ -247,7 +247,9 @@ def _autopilot_campaign(args: argparse.Namespace, mission_fn: str | None) -> dic
         from alight.interfaces.px4_run import find_px4_build
 
         px4_dir = str(find_px4_build(args.px4).root)  # refused here in one line, not in every mission
-    setting = AutopilotSetting(kind=args.autopilot, mode=args.px4_mode, speed=args.px4_speed, px4_dir=px4_dir)
+    setting = AutopilotSetting(
+        kind=args.autopilot, mode=args.px4_mode, setpoint=args.setpoint, speed=args.px4_speed, px4_dir=px4_dir
+    )
     record = {k: v for k, v in setting.record().items() if k != "px4_dir"}  # the machine's, not the setting
     return {
         "mission_fn": MISSION_FNS[args.autopilot],
@@ -425,6 +427,10 @@ def _campaign_arguments(p: argparse.ArgumentParser) -> None:
         help="how the autopilot lands (emulator and px4): offboard setpoints or LANDING_TARGET only",
     )  # fmt: skip
     p.add_argument("--px4-speed", type=float, default=1.0, help="px4: sim s per wall s at most (0: free)")
+    p.add_argument(
+        "--setpoint", choices=("position", "rates"), default="position",
+        help="offboard setpoints through the autopilot: position (its controllers fly) or body rates",
+    )  # fmt: skip
 
 
 def _report_arguments(p: argparse.ArgumentParser) -> None:

@@ -193,3 +193,21 @@ def test_report_command_errors_are_one_line(tmp_path: Path) -> None:
     assert (
         done.stderr.strip() == f"alight report: {tmp_path}: no results.csv (not a campaign output directory)"
     )
+
+
+def test_a_directory_flown_through_one_autopilot_is_not_resumed_through_another(tmp_path: Path) -> None:
+    # alight campaign --autopilot records how the missions were flown; mixing PX4's results with the
+    # simulator's (or the emulator's) in one results.csv would compare nothing with anything
+    campaign = campaign_from_dict(_campaign())
+    px4 = {"kind": "px4", "mode": "offboard", "setpoint": "position", "flavour": "px4", "speed": 1.0}
+    run_campaign(campaign, tmp_path, workers=1, limit=2, mission_fn=campaign_fakes.instant, report=False,
+                 flown_with=px4)  # fmt: skip
+    assert json.loads((tmp_path / "campaign.lock.json").read_text())["flown_with"] == px4
+    with pytest.raises(ConfigError, match="flown with .*px4.*now with alight sim"):
+        run_campaign(campaign, tmp_path, workers=1, mission_fn=campaign_fakes.instant, report=False)
+    with pytest.raises(ConfigError, match="now with .*landing-target"):
+        run_campaign(campaign, tmp_path, workers=1, mission_fn=campaign_fakes.instant, report=False,
+                     flown_with={**px4, "mode": "landing-target"})  # fmt: skip
+    r = run_campaign(campaign, tmp_path, workers=1, limit=3, mission_fn=campaign_fakes.instant, report=False,
+                     flown_with=dict(px4))  # fmt: skip
+    assert r.n_skipped == 2 and r.n_run == 1

@@ -475,7 +475,7 @@ def test_platform_fixes_reach_the_estimator_when_the_clock_reaches_their_stamp()
     ap = FakeAutopilot()
     fly(bridge, cap, cam, ap, 1.0)
     got: list[tuple[float, np.ndarray]] = []
-    bridge.pipeline.on_telemetry = lambda t, p, v, cov: got.append((t, p)) or True  # type: ignore[method-assign]
+    bridge.pipeline.on_telemetry = lambda t, p, v, cov, now=None: got.append((t, p)) or True  # type: ignore[method-assign]
     t0, cov = bridge.t_ap, np.eye(3) * 0.25
 
     def fix(t: float) -> PlatformFix:
@@ -486,5 +486,22 @@ def test_platform_fixes_reach_the_estimator_when_the_clock_reaches_their_stamp()
     assert bridge.stats.rejected["platform_fix_ahead"] == 1 and len(bridge._waiting_fixes) == 1
     bridge._platform_fixes(t0 + 0.06, [fix(t0 - 0.2), fix(t0 - 7.0)])  # repeated; older than 5 s
     assert [t for t, _ in got] == [t0 - 0.2, t0 + 0.05]
-    assert bridge.stats.rejected["platform_fix_order"] == 1 and bridge.stats.rejected["platform_fix_late"] == 1
-    assert bridge.stats.accepted["platform_fix"] == 2 and bridge.stats.rejected["platform_fix"] == 3
+    rejected = bridge.stats.rejected
+    assert rejected["platform_fix_order"] == 1 and rejected["platform_fix_late"] == 1
+    assert bridge.stats.accepted["platform_fix"] == 2 and rejected["platform_fix"] == 3
+
+
+def test_a_platform_fix_between_the_pipelines_steps_is_fused_not_taken_for_the_future() -> None:
+    # the bridge does not step the pipeline while it holds (here: the camera stalls after 3 s) or waits
+    # for the arming: a fix seconds after the estimator's last clock would be "from the future"
+    # (MeasurementError) unless the estimator's clock is first brought to the bridge's
+    bridge, cap, cam = make_bridge(arm=True)
+    fly(bridge, cap, cam, FakeAutopilot(), 6.0, frames_until_s=3.0)
+    t, pipe = bridge.t_ap, bridge.pipeline
+    assert bridge.holding and pipe.fuses_telemetry and pipe.stats.telemetry_fixes == 0
+    assert pipe._platform_clock < t - 2.0  # stepped while engaged, not since the stall
+    fix = PlatformFix(t - 0.2, np.array([5.0, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), np.eye(3) * 0.25)
+    bridge._platform_fixes(t, [fix])
+    assert pipe.stats.telemetry_fixes == 1 and "pipeline" not in bridge.stats.rejected
+    target = pipe.target(t)
+    assert target is not None and np.linalg.norm(target.p_WP[:2] - [5.2, 0.0]) < 0.5

@@ -554,7 +554,10 @@ class MavlinkBridge:
                 self.stats.bad("platform_fix_order")
             else:
                 self.stats.ok("platform_fix")
-                self.pipeline.on_telemetry(fix.t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP)
+                self._feed(self._on_telemetry, fix.t_stamp, fix, t)
+
+    def _on_telemetry(self, t_stamp: float, fix: PlatformFix, now: float) -> None:
+        self.pipeline.on_telemetry(t_stamp, fix.p_WP, fix.v_WP, fix.cov_p_WP, now=now)
 
     def _on_frame(self, t: float, t_cap: float, image: np.ndarray) -> None:
         if cam_clock_is_companion(self.camera):

@@ -245,6 +245,7 @@ class Pipeline:
         # ... and the per-frame and per-measurement ones (an isinstance on a runtime-checkable Protocol
         # walks the Protocol's attributes: tens of microseconds at the camera's rate)
         self._fuses_telemetry = isinstance(pe, TelemetryFusing)
+        self._platform_clock = math.nan  # the last time given to the platform estimator's predict
         # a ship's deck (issue 37): the estimator fuses the vessel's motion broadcast, and the landing
         # meets the deck in a quiet window of its predicted motion (mission/quiet_window.py)
         self._fuses_deck_motion = isinstance(pe, DeckMotionFusing)
@@ -366,16 +367,24 @@ class Pipeline:
         the last :data:`~alight.estimation.optical_flow.FLOW_MAX_AGE_S`; None without one."""
         return self.deck_flow.slip_mps(t)
 
-    def on_telemetry(self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray) -> bool:
+    def on_telemetry(
+        self, t_stamp: float, p_WP: FloatArray, v_WP: FloatArray, cov: FloatArray, now: float | None = None
+    ) -> bool:
         """The platform's own GNSS fix, taken at ``t_stamp`` and arriving now (later): position (3,) m,
         velocity (3,) m/s in W, the receiver's covariance (3, 3) m^2. The platform estimator fuses it
         when it can (:class:`alight.estimation.TelemetryFusing`; the runner refuses telemetry for one that
-        cannot); True when used."""
+        cannot); True when used. ``now``: the receiver's clock, for a caller whose :meth:`step` does not
+        run at every moment (the MAVLink bridge holds, or waits for the arming, without stepping): the
+        estimator's clock is brought to it first, so that a fresh fix is not taken for one from the
+        future. The simulator's runner steps at the planner's rate and leaves it None."""
         if not self._fuses_telemetry:
             return False
         est = cast(TelemetryFusing, self.platform_estimator)  # checked once, in __init__
         self.stats.telemetry_fixes += 1
         t0 = time.perf_counter()
+        if now is not None and not now <= self._platform_clock:  # also while it has none (NaN)
+            self.platform_estimator.predict(now)
+            self._platform_clock = now
         used = est.update_telemetry(t_stamp, p_WP, v_WP, cov)
         self.stats.charge("platform_estimator", t0)
         self._target = None
@@ -510,6 +519,7 @@ class Pipeline:
         # The platform estimator's clock: a measurement stamped later than this (plus its tolerance)
         # is from the future and is refused, instead of blocking every real one after it.
         self.platform_estimator.predict(t)
+        self._platform_clock = t
         ego = self.ego()
         target = self.target(t)
         t0 = time.perf_counter()
