@@ -505,3 +505,15 @@ def test_a_platform_fix_between_the_pipelines_steps_is_fused_not_taken_for_the_f
     assert pipe.stats.telemetry_fixes == 1 and "pipeline" not in bridge.stats.rejected
     target = pipe.target(t)
     assert target is not None and np.linalg.norm(target.p_WP[:2] - [5.2, 0.0]) < 0.5
+
+
+def test_the_autopilots_land_detector_is_logged_as_it_changes() -> None:
+    # what PX4's land detector says on a moving deck (PX4 #14873) is read from the bridge's events
+    bridge, cap, cam = make_bridge(arm=True)
+    ap = FakeAutopilot()
+    fly(bridge, cap, cam, ap, 0.5)
+    before = [e for e in bridge.events if e["event"] == "autopilot_landed_state"]
+    for state in (2, 2, 4, 1, 1, 9):  # in air, in air, landing, on ground, on ground, not an enum value
+        bridge.feed_bytes(ap.encode(ap.mav.extended_sys_state_encode(0, state)))
+    said = [e["state"] for e in bridge.events if e["event"] == "autopilot_landed_state"][len(before) :]
+    assert said == ["in_air", "landing", "on_ground"] and bridge.was_airborne

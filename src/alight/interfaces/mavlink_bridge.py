@@ -177,6 +177,9 @@ FRAME_WAIT_MAX = 8
 the clock has stopped, not lagged (at 20 Hz, 0.4 s of frames)."""
 
 
+LANDED_STATE_NAMES = ("undefined", "on_ground", "in_air", "takeoff", "landing")
+"""MAV_LANDED_STATE by value, as the bridge logs the autopilot's land detector (PX4 #14873: on a moving
+deck)."""
 PLATFORM_FIX_MAX_AGE_S = 5.0
 """A platform fix older than this on arrival is refused (the telemetry model's latency is at most 5 s)."""
 
@@ -479,6 +482,8 @@ class MavlinkBridge:
 
     def _on_extended_sys_state(self, msg: Any) -> None:
         if msg.landed_state in (0, 1, 2, 3, 4):
+            if int(msg.landed_state) != self.landed_state:  # the autopilot's land detector, as it says
+                self._event("autopilot_landed_state", state=LANDED_STATE_NAMES[int(msg.landed_state)])
             self.landed_state = int(msg.landed_state)
             if msg.landed_state == mavlink.MAV_LANDED_STATE_IN_AIR:
                 self.was_airborne = True
