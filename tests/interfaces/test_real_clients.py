@@ -4,10 +4,13 @@ connection helpers, against both emulator flavours. Each connects, reads the tel
 waits for, reads and sets parameters, downloads the (empty) mission, arms, takes off, flies (offboard
 and goto), is refused a disarm in the air, lands on the parked pad with its land command and is found
 disarmed on the ground. The emulator runs at 8x real time (no lockstep peer: its ``speed`` paces it), so
-each client's flight takes a few seconds of wall time."""
+each client's flight takes a few seconds of wall time. MAVSDK's script also flies stock PX4 SITL with
+alight's world as its simulator, where a build is found (``ALIGHT_PX4_DIR``, docs/px4.md), and must pass
+there unchanged but for the waits (PX4 runs at real time)."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -99,9 +102,18 @@ def finish(emu: Emulator) -> dict[str, Any]:
 
 
 # -- MAVSDK --------------------------------------------------------------------------------------------
-@pytest.mark.slow
-@pytest.mark.parametrize("flavour", FLAVOURS)
-def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulator]) -> None:
+@dataclass(frozen=True)
+class Pace:
+    """How long the client waits for the autopilot (wall s): the emulator runs at 8x real time, PX4 SITL
+    at real time."""
+
+    move_s: float = 4.0
+    wait_s: float = 20.0
+
+
+def mavsdk_flight(url: str, flavour: str, pace: Pace = Pace()) -> list[str]:
+    """MAVSDK flies the autopilot at ``url`` (module docstring); returns what differs from the
+    emulator's conventions (empty where everything is as asserted)."""
     mavsdk = pytest.importorskip("mavsdk")
     from mavsdk.plugins.action import Action, ActionError
     from mavsdk.plugins.mission_raw import MissionRaw
@@ -109,11 +121,10 @@ def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulato
     from mavsdk.plugins.param import Param
     from mavsdk.plugins.telemetry import FlightMode, LandedState, Telemetry
 
-    emu = emulator(flavour)
     gcs = mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION)
     drone = mavsdk.Mavsdk(gcs)
     try:
-        drone.add_any_connection(f"udpout://127.0.0.1:{emu.port}")
+        drone.add_any_connection(url)
         system = drone.first_autopilot(30.0)
         assert system is not None
         tel, action, param = Telemetry(system), Action(system), Param(system)
@@ -125,7 +136,7 @@ def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulato
             located = math.isfinite(pos.latitude_deg) and math.isfinite(home.latitude_deg)
             return located and gps.num_satellites > 0
 
-        wait_for("position, home and GPS", has_fix)
+        wait_for("position, home and GPS", has_fix, pace.wait_s)
         geo = Geodetic()
         assert tel.home().latitude_deg == pytest.approx(geo.lat0_deg, abs=1e-6)
         assert tel.home().absolute_altitude_m == pytest.approx(geo.alt0_m, abs=0.5)
@@ -148,10 +159,10 @@ def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulato
         action.set_takeoff_altitude(3.0)
         action.arm()
         action.takeoff()
-        wait_for("take-off", lambda: tel.position().relative_altitude_m > 2.7)
+        wait_for("take-off", lambda: tel.position().relative_altitude_m > 2.7, pace.wait_s)
         # PX4 holds in AUTO.LOITER after AUTO.TAKEOFF; ArduCopter stays in GUIDED (MAVSDK: "offboard")
         after_takeoff = FlightMode.HOLD if flavour == "px4" else FlightMode.OFFBOARD
-        wait_for("the mode after take-off", lambda: tel.flight_mode() == after_takeoff)
+        wait_for("the mode after take-off", lambda: tel.flight_mode() == after_takeoff, pace.wait_s)
         with pytest.raises(ActionError):  # a disarm in the air is refused (its unused params are NaN)
             action.disarm()
         goal = PositionNedYaw(1.0, -1.0, -3.0, 90.0)
@@ -160,7 +171,8 @@ def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulato
             time.sleep(0.05)
         offboard.start()
         wait_for("offboard", lambda: tel.flight_mode() == FlightMode.OFFBOARD)
-        for _ in range(200):  # a stream, as offboard needs (MAVSDK re-sends the setpoint itself too)
+        deadline = time.monotonic() + pace.move_s
+        while time.monotonic() < deadline:  # a stream, as offboard needs (MAVSDK re-sends it itself too)
             offboard.set_position_ned(goal)
             pv = tel.position_velocity_ned().position
             if math.dist((pv.north_m, pv.east_m, pv.down_m), (1.0, -1.0, -3.0)) < 0.15:
@@ -182,18 +194,80 @@ def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulato
             east, north = geo.to_east_north(p.latitude_deg, p.longitude_deg)
             return math.dist((east, north), PAD_EN) < 0.2 and abs(p.relative_altitude_m - 3.0) < 0.3
 
-        wait_for("goto over the pad", over_pad)
+        wait_for("goto over the pad", over_pad, pace.wait_s)
         action.land()
-        wait_for("landed and disarmed", lambda: not tel.armed(), timeout_s=30.0)
+        wait_for("landed and disarmed", lambda: not tel.armed(), timeout_s=max(30.0, pace.wait_s))
         assert tel.landed_state() == LandedState.ON_GROUND
         action.disarm()  # already disarmed: accepted
     finally:
         drone.destroy()
+    return []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("flavour", FLAVOURS)
+def test_mavsdk_flies_the_emulator(flavour: str, emulator: Callable[..., Emulator]) -> None:
+    pytest.importorskip("mavsdk")
+    emu = emulator(flavour)
+    mavsdk_flight(f"udpout://127.0.0.1:{emu.port}", flavour)
     result = finish(emu)
     assert result["outcome"] == "landed" and result["contact_surface"] == "pad", result["outcome_reason"]
     events = result["sitl_events"]
     assert [e for e in events if e["event"] == "param"][0]["value"] == pytest.approx(2.0)
     assert not [e for e in events if e["event"] == "bad_message"]
+
+
+@pytest.mark.slow
+def test_mavsdk_flies_real_px4_as_it_flies_the_emulator(tmp_path: Path) -> None:
+    # the same client script against stock PX4 SITL with alight's world as its simulator (docs/px4.md);
+    # skipped where no build is found (no package registry ships one)
+    pytest.importorskip("mavsdk")
+    from alight.interfaces.px4_run import find_px4_build
+
+    try:
+        build = find_px4_build(None)
+    except Exception as err:  # noqa: BLE001 - the reason is the skip's
+        pytest.skip(f"no PX4 SITL build: {err}")
+    with px4_with_world(build, _scenario(), tmp_path) as (instance, verdict):
+        mavsdk_flight(f"udpin://127.0.0.1:{14540 + instance}", "px4", Pace(move_s=20.0, wait_s=90.0))
+        result = verdict()  # the world ends once the vehicle has stood on the pad for contact.settle_s
+    assert result["outcome"] == "landed" and result["contact_surface"] == "pad", result["outcome_reason"]
+
+
+@contextlib.contextmanager
+def px4_with_world(
+    build: Any, scenario: Scenario, workdir: Path
+) -> Iterator[tuple[int, Callable[[], dict[str, Any]]]]:
+    """Stock PX4 on a claimed instance, alight's world as its simulator in a thread, a companion's camera
+    stream held open (the world waits for one) that receives the verdict; yields the instance and a
+    function that waits for the world's verdict."""
+    from alight.airframes import load_airframe
+    from alight.interfaces.camera_source import SocketCameraSource
+    from alight.interfaces.px4_airframe import px4_environment
+    from alight.interfaces.px4_run import claim_instance, start_px4, stop_process
+    from alight.interfaces.px4_sim import Px4SimConfig, Px4Simulator
+
+    instance, lock = claim_instance()
+    sim = Px4Simulator(scenario, Px4SimConfig(instance=instance))
+    out: dict[str, Any] = {}
+    world = threading.Thread(target=lambda: out.update(sim.run()), daemon=True)
+    world.start()
+    cam = SocketCameraSource("127.0.0.1", sim.camera_port)
+    px4 = start_px4(build, instance, workdir / "px4", px4_environment(load_airframe(scenario.airframe)))
+
+    def verdict() -> dict[str, Any]:
+        world.join(timeout=120.0)
+        assert out, "the world returned no verdict"
+        return out
+
+    try:
+        yield instance, verdict
+    finally:
+        stop_process(px4)
+        world.join(timeout=30.0)
+        cam.close()
+        sim.close()
+        lock.close()
 
 
 # -- MAVProxy --------------------------------------------------------------------------------------------
