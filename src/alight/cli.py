@@ -1,7 +1,8 @@
 """The ``alight`` command.
 
     alight fly SCENARIO.yaml --out DIR [--seed N] [--replay] [--mcap] [--bag PATH [--bag-storage S]]
-               [--print-config] [--no-warmup] [--autopilot sim|px4 [--px4 DIR] [--px4-mode M] [--px4-speed X]]
+               [--print-config] [--no-warmup] [--autopilot sim|emulator|px4 [--px4 DIR] [--px4-mode M]
+               [--px4-speed X] [--setpoint position|rates]]
     alight blocks
     alight detect IMAGE... --detector NAME [--camera FILE]
     alight bench [--quick] [--only KEY,...]
@@ -49,12 +50,12 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     if args.out is None:
         raise AlightError("--out DIR is required (unless --print-config)")
     out = Path(args.out)
-    if args.autopilot == "px4":
-        from alight.interfaces.px4_run import fly_px4_command
+    if args.autopilot in ("px4", "emulator"):
+        from alight.interfaces.autopilot_missions import fly_through_command
 
         if not args.no_warmup:
             _warm_up_before_the_clock(scenario)
-        return fly_px4_command(scenario, out, args)
+        return fly_through_command(scenario, out, args)
     exports = _fly_exports(args, scenario, out)
     if not args.no_warmup:
         _warm_up_before_the_clock(scenario)
@@ -384,13 +385,18 @@ def _fly_arguments(p: argparse.ArgumentParser) -> None:
         help="skip the warm-up flight that compiles numba's kernels before the mission's clock starts",
     )
     p.add_argument(
-        "--autopilot", choices=("sim", "px4"), default="sim", help="sim: alight's own; px4: PX4 SITL"
-    )
+        "--autopilot", choices=("sim", "emulator", "px4"), default="sim",
+        help="sim: alight's own simulator; emulator: alight's emulated autopilot + the bridge; px4: PX4 SITL",
+    )  # fmt: skip
     p.add_argument(
         "--px4", default=None, metavar="DIR", help="PX4 SITL build (bin/px4); else $ALIGHT_PX4_DIR"
     )
     p.add_argument("--px4-mode", choices=("offboard", "landing-target"), default="offboard")
     p.add_argument("--px4-speed", type=float, default=1.0, help="sim s per wall s at most (0: free-running)")
+    p.add_argument(
+        "--setpoint", choices=("position", "rates"), default="position",
+        help="offboard setpoints through the autopilot: position (its controllers fly) or body rates",
+    )  # fmt: skip
 
 
 def _detect_arguments(p: argparse.ArgumentParser) -> None:

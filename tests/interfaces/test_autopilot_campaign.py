@@ -71,3 +71,17 @@ def test_a_mission_function_without_its_setting_says_so(monkeypatch: pytest.Monk
     setting = AutopilotSetting(kind="px4", mode="landing-target", speed=2.0)
     monkeypatch.setenv(AUTOPILOT_ENV, setting.to_env())
     assert AutopilotSetting.from_env() == setting
+
+
+def test_fly_through_the_emulator_refuses_the_simulators_own_outputs(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from alight.errors import ConfigError
+    from alight.interfaces.autopilot_missions import fly_through_command
+
+    args = SimpleNamespace(autopilot="emulator", px4=None, px4_mode="offboard", px4_speed=1.0,
+                           setpoint="rates", replay=False, mcap=True, bag=None)  # fmt: skip
+    with pytest.raises(
+        ConfigError, match="emulator: --replay, --mcap and --bag are for --autopilot sim only"
+    ):
+        fly_through_command(load_scenario(DATA / "precland_slow.yaml"), tmp_path, args)

@@ -18,6 +18,7 @@ import pytest
 
 from alight.airframes import load_airframe
 from alight.errors import ConfigError
+from alight.interfaces.autopilot_missions import fly_through_command
 from alight.interfaces.px4_airframe import px4_environment
 from alight.interfaces.px4_run import (
     PX4_DIR_ENV,
@@ -27,7 +28,6 @@ from alight.interfaces.px4_run import (
     claim_instance,
     find_px4_build,
     fly_px4,
-    fly_px4_command,
     free_instance,
 )
 from alight.interfaces.px4_sim import SIM_PORT_BASE
@@ -144,9 +144,10 @@ def test_a_px4_that_crashes_ends_the_mission_as_error(
 ) -> None:
     build = _fake_build(tmp_path / "px4", 300)
     args = SimpleNamespace(
-        px4=str(build), px4_mode="offboard", px4_speed=0.0, replay=False, mcap=False, bag=None
-    )
-    assert fly_px4_command(_scenario(), tmp_path / "out", args) == 0
+        autopilot="px4", px4=str(build), px4_mode="offboard", px4_speed=0.0, setpoint="position",
+        replay=False, mcap=False, bag=None,
+    )  # fmt: skip
+    assert fly_through_command(_scenario(), tmp_path / "out", args) == 0
     r = json.loads((tmp_path / "out" / "result.json").read_text())
     assert r["outcome"] == "error" and "closed the simulator link" in r["outcome_reason"]
     # the stand-in is never armed: it dies 1.5 s into its clock, before the mission's clock has started
@@ -155,7 +156,7 @@ def test_a_px4_that_crashes_ends_the_mission_as_error(
     assert r["simulated_time_s"] == 0.0 and r["sitl"]["px4_boot_s"] is None
     assert "px4 alight seed 1 (offboard): error" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="--autopilot sim only"):
-        fly_px4_command(_scenario(), tmp_path / "out2", SimpleNamespace(**{**vars(args), "replay": True}))
+        fly_through_command(_scenario(), tmp_path / "out2", SimpleNamespace(**{**vars(args), "replay": True}))
 
 
 @pytest.mark.skipif(

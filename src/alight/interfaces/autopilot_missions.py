@@ -158,3 +158,35 @@ def fly_emulator(scenario: Scenario, out_dir: str | Path, setting: AutopilotSett
         if emulator.is_alive():
             emulator.terminate()
             emulator.join(5.0)
+
+
+def fly_through_command(scenario: Scenario, out: Path, args: Any) -> int:
+    """``alight fly --autopilot emulator|px4``: fly, print one line, return the exit status. ``args``: the
+    command's parsed arguments (``autopilot``, ``px4``, ``px4_mode``, ``px4_speed``, ``setpoint``;
+    ``replay``, ``mcap`` and ``bag`` are refused: those outputs are written for alight's own simulator
+    only)."""
+    from alight.interfaces.px4_run import Px4FlyConfig, fly_px4
+
+    if args.replay or args.mcap or args.bag:
+        raise ConfigError(f"{args.autopilot}: --replay, --mcap and --bag are for --autopilot sim only")
+    setting = AutopilotSetting(
+        kind=args.autopilot, mode=args.px4_mode, setpoint=args.setpoint, speed=args.px4_speed,
+        px4_dir=args.px4,
+    )  # fmt: skip
+    if setting.kind == "px4":
+        config = Px4FlyConfig(mode=setting.mode, setpoint=setting.setpoint, speed=setting.speed)
+        r = fly_px4(scenario, out, setting.px4_dir, config)
+    else:
+        r = fly_emulator(scenario, out, setting)
+    err = r.get("touchdown_error_m")
+    err_txt = "-" if err is None else f"{err:.3f} m"
+    lockstep: dict[str, Any] = next(
+        (e for e in (r.get("sitl") or {}).get("events") or [] if e.get("kind") == "px4_lockstep"), {}
+    )
+    pace = f" at {lockstep.get('sim_s_per_wall_s')} x real time" if lockstep else ""
+    reason = f" ({r.get('outcome_reason')})" if r["outcome"] == "error" else ""
+    print(
+        f"{setting.kind} {r['preset']} seed {r['seed']} ({setting.mode}): {r['outcome']}{reason}, touchdown "
+        f"error {err_txt}, {r.get('simulated_time_s') or 0.0:.1f} s simulated{pace} -> {out / 'report.html'}"
+    )
+    return 0

@@ -313,27 +313,3 @@ def _max_wall_s(scenario: Scenario, config: Px4FlyConfig) -> float:
     plus the start-up, so that nothing keeps a campaign waiting for ever."""
     speed = config.speed if config.speed > 0 else 1.0
     return scenario.duration_s / min(speed, 1.0) * 5.0 + 600.0
-
-
-def fly_px4_command(scenario: Scenario, out: Path, args: Any) -> int:
-    """``alight fly --autopilot px4``: fly, print one line, return the exit status. ``args``: the
-    command's parsed arguments (``px4``, ``px4_mode``, ``px4_speed``; ``replay``, ``mcap`` and ``bag``
-    are refused: those outputs are written for alight's own simulator only)."""
-    if args.replay or args.mcap or args.bag:
-        raise ConfigError("px4: --replay, --mcap and --bag are written for --autopilot sim only")
-    if not (args.px4_speed >= 0.0 and args.px4_speed < 1e3):
-        raise ConfigError(f"px4: --px4-speed must be in [0, 1000), got {args.px4_speed}")
-    config = Px4FlyConfig(mode=args.px4_mode, speed=args.px4_speed)
-    r = fly_px4(scenario, out, args.px4, config)
-    err = r.get("touchdown_error_m")
-    err_txt = "-" if err is None else f"{err:.3f} m"
-    lockstep: dict[str, Any] = next(
-        (e for e in (r.get("sitl") or {}).get("events") or [] if e.get("kind") == "px4_lockstep"), {}
-    )
-    print(
-        f"px4 {r['preset']} seed {r['seed']} ({config.mode}): {r['outcome']}"
-        f"{' (' + str(r.get('outcome_reason')) + ')' if r['outcome'] == 'error' else ''}, touchdown error"
-        f" {err_txt}, {lockstep.get('sim_s', 0.0):.1f} s simulated at {lockstep.get('sim_s_per_wall_s')} x"
-        f" real time -> {out / 'report.html'}"
-    )
-    return 0
