@@ -35,6 +35,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     from alight.evaluation.mission_io import fly_to_dir
     from alight.scenario import load_scenario
 
+    _autopilot_settings(args)
     scenario = load_scenario(args.scenario)
     if args.seed is not None:
         if args.seed < 0:
@@ -171,6 +172,7 @@ MISSION_FN_ENV = "ALIGHT_CAMPAIGN_MISSION_FN"
 def _cmd_campaign(args: argparse.Namespace) -> int:
     from alight.campaign.run import CampaignInterrupted, run_campaign
 
+    _autopilot_settings(args)
     if args.workers is not None and args.workers < 1:
         raise AlightError(f"--workers must be >= 1, got {args.workers}")
     if args.limit is not None and args.limit < 1:
@@ -384,19 +386,50 @@ def _fly_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="skip the warm-up flight that compiles numba's kernels before the mission's clock starts",
     )
+    _autopilot_arguments(p)
+
+
+def _autopilot_arguments(p: argparse.ArgumentParser) -> None:
+    """``--autopilot`` and its settings, for ``alight fly`` and ``alight campaign``
+    (:func:`_autopilot_settings` refuses the ones that would not act)."""
     p.add_argument(
         "--autopilot", choices=("sim", "emulator", "px4"), default="sim",
         help="sim: alight's own simulator; emulator: alight's emulated autopilot + the bridge; px4: PX4 SITL",
     )  # fmt: skip
     p.add_argument(
-        "--px4", default=None, metavar="DIR", help="PX4 SITL build (bin/px4); else $ALIGHT_PX4_DIR"
+        "--px4", default=None, metavar="DIR", help="px4: the SITL build (bin/px4); else $ALIGHT_PX4_DIR"
     )
-    p.add_argument("--px4-mode", choices=("offboard", "landing-target"), default="offboard")
-    p.add_argument("--px4-speed", type=float, default=1.0, help="sim s per wall s at most (0: free-running)")
     p.add_argument(
-        "--setpoint", choices=("position", "rates"), default="position",
-        help="offboard setpoints through the autopilot: position (its controllers fly) or body rates",
+        "--px4-mode", choices=("offboard", "landing-target"), default=None,
+        help="how the autopilot lands (emulator, px4): offboard setpoints (default) or LANDING_TARGET only",
     )  # fmt: skip
+    p.add_argument(
+        "--px4-speed", type=float, default=None, help="px4: sim s per wall s at most (default 1; 0: free)"
+    )
+    p.add_argument(
+        "--setpoint", choices=("position", "rates"), default=None,
+        help="emulator, px4: offboard setpoints, position (default: its controllers fly) or body rates",
+    )  # fmt: skip
+
+
+AUTOPILOT_DEFAULTS = {"px4": None, "px4_mode": "offboard", "px4_speed": 1.0, "setpoint": "position"}
+_ACTS_WITH = {
+    "px4": ("px4",),
+    "px4_speed": ("px4",),
+    "px4_mode": ("emulator", "px4"),
+    "setpoint": ("emulator", "px4"),
+}
+
+
+def _autopilot_settings(args: argparse.Namespace) -> None:
+    """Refuse, in one line, an autopilot setting that would not act with ``--autopilot``; fill the
+    defaults of the others."""
+    for name, kinds in _ACTS_WITH.items():
+        if getattr(args, name) is not None and args.autopilot not in kinds:
+            flag = "--" + name.replace("_", "-")
+            raise AlightError(f"{flag} acts only with --autopilot {' or '.join(kinds)}, not {args.autopilot}")
+        if getattr(args, name) is None:
+            setattr(args, name, AUTOPILOT_DEFAULTS[name])
 
 
 def _detect_arguments(p: argparse.ArgumentParser) -> None:
@@ -421,22 +454,7 @@ def _campaign_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.add_argument("--limit", type=int, default=None, help="only the first N missions of the campaign")
-    p.add_argument(
-        "--autopilot", choices=("sim", "emulator", "px4"), default="sim",
-        help="sim: alight's own simulator; emulator: alight sitl + the bridge; px4: PX4 SITL + the bridge",
-    )  # fmt: skip
-    p.add_argument(
-        "--px4", default=None, metavar="DIR", help="PX4 SITL build (bin/px4); else $ALIGHT_PX4_DIR"
-    )
-    p.add_argument(
-        "--px4-mode", choices=("offboard", "landing-target"), default="offboard",
-        help="how the autopilot lands (emulator and px4): offboard setpoints or LANDING_TARGET only",
-    )  # fmt: skip
-    p.add_argument("--px4-speed", type=float, default=1.0, help="px4: sim s per wall s at most (0: free)")
-    p.add_argument(
-        "--setpoint", choices=("position", "rates"), default="position",
-        help="offboard setpoints through the autopilot: position (its controllers fly) or body rates",
-    )  # fmt: skip
+    _autopilot_arguments(p)
 
 
 def _report_arguments(p: argparse.ArgumentParser) -> None:

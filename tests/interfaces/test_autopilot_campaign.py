@@ -49,6 +49,8 @@ def test_a_campaign_mission_through_the_emulator_lands_with_the_platforms_teleme
     [
         (["--autopilot", "px4", "--px4", "{tmp}/nothing"], "has no PX4 SITL build"),
         (["--autopilot", "emulator", "--engine", "dask"], "local engine only"),
+        (["--setpoint", "rates"], "--setpoint acts only with --autopilot emulator or px4, not sim"),
+        (["--autopilot", "emulator", "--px4-speed", "2"], "--px4-speed acts only with --autopilot px4"),
     ],
 )
 def test_autopilot_settings_are_refused_in_one_line(
@@ -85,3 +87,15 @@ def test_fly_through_the_emulator_refuses_the_simulators_own_outputs(tmp_path: P
         ConfigError, match="emulator: --replay, --mcap and --bag are for --autopilot sim only"
     ):
         fly_through_command(load_scenario(DATA / "precland_slow.yaml"), tmp_path, args)
+
+
+def test_fly_refuses_an_autopilot_setting_that_would_not_act(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scenario = str(DATA / "precland_slow.yaml")
+    assert main(["fly", scenario, "--out", str(tmp_path), "--px4-mode", "landing-target"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert (
+        "--px4-mode acts only with --autopilot emulator or px4, not sim" in err and len(err.splitlines()) == 1
+    )
+    assert not (tmp_path / "result.json").exists()
