@@ -48,14 +48,20 @@ def test_frame_codec_round_trip_and_malformed_payloads() -> None:
     assert decode_frame(struct.pack("<IdIII", 1, 0.0, 2, 2, 2) + b"\0" * 8) is None  # 2 channels
 
 
-def test_tcp_stream_delivers_frames_in_order_with_verdict_and_truth() -> None:
+def _connected_stream() -> tuple[FrameServer, SocketCameraSource]:
+    """An emulator's stream end and the bridge's, connected (within 5 s)."""
     server = FrameServer("127.0.0.1", 0)
     server.hello = None
     src = SocketCameraSource("127.0.0.1", server.port)
+    deadline = time.monotonic() + 5.0
+    while not server.connected and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return server, src
+
+
+def test_tcp_stream_delivers_frames_in_order_with_verdict_and_truth() -> None:
+    server, src = _connected_stream()
     try:
-        deadline = time.monotonic() + 5.0
-        while not server.connected and time.monotonic() < deadline:
-            time.sleep(0.01)
         imgs = [np.full((480, 752), i, dtype=np.uint8) for i in range(3)]
         for i, img in enumerate(imgs):
             assert server.send_frame(0.05 * i, img)
@@ -128,13 +134,9 @@ def test_platform_fix_codec_round_trips_and_refuses_malformed_fixes() -> None:
 
 
 def test_platform_fixes_cross_the_stream_in_order_beside_the_frames() -> None:
-    server = FrameServer("127.0.0.1", 0)
-    server.hello = None
-    src = SocketCameraSource("127.0.0.1", server.port)
+    server, src = _connected_stream()
     try:
         deadline = time.monotonic() + 5.0
-        while not server.connected and time.monotonic() < deadline:
-            time.sleep(0.01)
         cov = np.eye(3) * 0.25
         img = np.zeros((4, 4), dtype=np.uint8)
         assert server.send_platform_fix(0.1, np.zeros(3), np.ones(3), cov)

@@ -4,11 +4,11 @@ one run did not fly."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+from tool_loader import load_tool
 
 from alight.campaign import campaign_from_dict, run_campaign, wilson95
 
@@ -16,12 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _tool() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("side_by_side", ROOT / "tools" / "side_by_side.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["side_by_side"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("side_by_side")
 
 
 def lands_below_2_mps(scenario: Any, out_dir: Path) -> dict[str, Any]:
